@@ -1,0 +1,37 @@
+# vidtrack: `make demo` tracks the bundled sample; `make test` runs the test suite.
+PYTHON ?= python3
+VENV   ?= .venv
+BIN    := $(VENV)/bin
+OUT    ?= out
+
+.PHONY: demo test install install-dev sample clean
+
+$(BIN)/python:
+	$(PYTHON) -m venv $(VENV)
+	$(BIN)/python -m pip install --quiet --upgrade pip
+
+$(VENV)/.installed: $(BIN)/python pyproject.toml
+	$(BIN)/python -m pip install --quiet -e .
+	touch $@
+
+$(VENV)/.installed-dev: $(BIN)/python pyproject.toml
+	$(BIN)/python -m pip install --quiet -e ".[dev]"
+	touch $(VENV)/.installed $@
+
+install: $(VENV)/.installed
+install-dev: $(VENV)/.installed-dev
+
+demo: install
+	@mkdir -p $(OUT)
+	$(BIN)/vidtrack data/sample.mp4 --init-box $$(head -n 1 data/sample_groundtruth.txt) \
+		--filter $${FILTER:-kalman-cv} -o $(OUT)/demo.mp4 --boxes $(OUT)/demo_boxes.txt --log $(OUT)/demo_log.csv
+	@echo "demo: annotated video $(OUT)/demo.mp4, boxes $(OUT)/demo_boxes.txt, per-frame log $(OUT)/demo_log.csv"
+
+test: install-dev
+	$(BIN)/python -m pytest $(PYTEST_ARGS)
+
+sample: install
+	$(BIN)/python scripts/make_sample.py --out data
+
+clean:
+	rm -rf $(VENV) $(OUT) .pytest_cache

@@ -1,0 +1,1 @@
+"""Evaluation on benchmark sequences: datasets, metrics, experiment runner, plots."""

@@ -1,0 +1,1 @@
+"""Filters: recursive (robust) estimators of the target box."""

@@ -1,0 +1,115 @@
+"""Interacting Multiple Model estimator (Blom & Bar-Shalom, 1988).
+
+A bank of Kalman filters sharing one state space (models of lower order are
+embedded with zero rows, see :func:`vidtrack.filters.kalman.axis_transition`)
+and a Markov chain over which model is in force, with transition probability
+matrix ``M[i, j] = P(model j at k | model i at k-1)``.
+
+One cycle:
+
+1. mixing: ``c_j = sum_i M_ij mu_i``; ``mu_{i|j} = M_ij mu_i / c_j``;
+   ``x0_j = sum_i mu_{i|j} x_i``;
+   ``P0_j = sum_i mu_{i|j} (P_i + (x_i - x0_j)(x_i - x0_j)')``;
+2. model-matched prediction and update of each filter from ``(x0_j, P0_j)``;
+3. mode probabilities ``mu_j = c_j L_j / sum_l c_l L_l`` with ``L_j`` the
+   likelihood of the innovation of filter ``j``;
+4. combination ``x = sum_j mu_j x_j``, ``P = sum_j mu_j (P_j + (x_j-x)(x_j-x)')``.
+"""
+
+from __future__ import annotations
+
+from typing import Sequence
+
+import numpy as np
+
+from .kalman import KalmanFilter
+
+
+def imm_mix(xs: np.ndarray, Ps: np.ndarray, mu: np.ndarray, M: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Mixing step. Returns ``(x0, P0, c)``: mixed means ``(r, n)``, covariances ``(r, n, n)``, ``c (r,)``."""
+    c = M.T @ mu  # c_j = sum_i M_ij mu_i
+    w = (M * mu[:, None]) / np.maximum(c[None, :], 1e-300)  # w[i, j] = mu_{i|j}
+    x0 = w.T @ xs
+    P0 = np.empty_like(Ps)
+    for j in range(len(mu)):
+        d = xs - x0[j]
+        P0[j] = np.einsum("i,ikl->kl", w[:, j], Ps + d[:, :, None] * d[:, None, :])
+    return x0, P0, c
+
+
+def imm_combine(xs: np.ndarray, Ps: np.ndarray, mu: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Moment-matched combination ``(x, P)`` of the model-conditioned estimates."""
+    x = mu @ xs
+    d = xs - x
+    P = np.einsum("j,jkl->kl", mu, Ps + d[:, :, None] * d[:, None, :])
+    return x, 0.5 * (P + P.T)
+
+
+def uniform_transition_matrix(r: int) -> np.ndarray:
+    """The uniform TPM ``M_ij = 1/r`` (as used by Salti & Di Stefano's IMM)."""
+    return np.full((r, r), 1.0 / r)
+
+
+def sticky_transition_matrix(r: int, stay: float = 0.95) -> np.ndarray:
+    """TPM with probability ``stay`` of keeping the current model."""
+    M = np.full((r, r), (1.0 - stay) / max(r - 1, 1))
+    np.fill_diagonal(M, stay if r > 1 else 1.0)
+    return M
+
+
+class IMMEstimator:
+    """IMM over Kalman filters that share one state space.
+
+    Parameters
+    ----------
+    filters
+        :class:`KalmanFilter` objects (any object with ``F, Q, H, R``, ``x_``,
+        ``P_`` and ``predict``/``update`` quacks right).
+    transition
+        Mode transition probability matrix ``(r, r)``; rows sum to 1.
+    mu0
+        Initial mode probabilities (uniform by default).
+    """
+
+    def __init__(self, filters: Sequence[KalmanFilter], transition: np.ndarray,
+                 mu0: np.ndarray | None = None) -> None:
+        self.filters = list(filters)
+        self.transition = np.asarray(transition, dtype=float)
+        self.mu0 = None if mu0 is None else np.asarray(mu0, dtype=float)
+
+    def initialize(self, x0: np.ndarray, P0: np.ndarray) -> None:
+        r = len(self.filters)
+        for f in self.filters:
+            f.initialize(x0, P0)
+        self.mu_ = np.full(r, 1.0 / r) if self.mu0 is None else self.mu0.copy()
+        self.c_ = self.mu_.copy()
+        self.x_, self.P_ = np.asarray(x0, float).copy(), np.asarray(P0, float).copy()
+        self.log_likelihood_ = 0.0
+
+    def predict(self) -> tuple[np.ndarray, np.ndarray]:
+        """Mix, predict every model, and return the combined prior."""
+        xs = np.array([f.x_ for f in self.filters])
+        Ps = np.array([f.P_ for f in self.filters])
+        x0, P0, self.c_ = imm_mix(xs, Ps, self.mu_, self.transition)
+        for j, f in enumerate(self.filters):
+            f.x_, f.P_ = x0[j], P0[j]
+            f.predict()
+        # Without a measurement the mode probabilities are the predicted ones.
+        self.mu_ = self.c_ / self.c_.sum()
+        self._combine()
+        return self.x_, self.P_
+
+    def update(self, z: np.ndarray, R: np.ndarray | None = None) -> None:
+        """Update every model with ``z`` and re-weight the modes."""
+        logL = np.array([f.update(z, R).log_likelihood for f in self.filters])
+        log_post = np.log(np.maximum(self.c_, 1e-300)) + logL
+        shift = log_post.max()
+        weights = np.exp(log_post - shift)
+        self.log_likelihood_ = float(shift + np.log(weights.sum()))
+        self.mu_ = weights / weights.sum()
+        self._combine()
+
+    def _combine(self) -> None:
+        xs = np.array([f.x_ for f in self.filters])
+        Ps = np.array([f.P_ for f in self.filters])
+        self.x_, self.P_ = imm_combine(xs, Ps, self.mu_)

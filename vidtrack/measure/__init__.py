@@ -1,0 +1,1 @@
+"""Measurers: turn a frame and a prior into a measurement."""

@@ -1,0 +1,123 @@
+"""Sliding-detector score maps: dense detector scores over box positions.
+
+The default detector is normalised cross-correlation (NCC) of a grey-level
+template against every box position in a search window around the prior
+(``cv2.matchTemplate`` with ``TM_CCOEFF_NORMED``, so scores lie in
+``[-1, 1]``).  The template is learned from the init box and updated online
+by a slow running average while the tracker is confident, so the detector
+follows gradual appearance change without absorbing occluders.
+
+The NormalHedge, particle, grid-Bayes and channel-based trackers all read
+the :class:`~vidtrack.types.ScoreMap` this produces.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import cv2
+import numpy as np
+
+from ..types import Box, Estimate, Frame, ScoreMap
+
+
+def to_gray(image: np.ndarray) -> np.ndarray:
+    """``(H, W, 3) uint8`` BGR (or already grey) -> ``(H, W) float32`` grey."""
+    if image.ndim == 3:
+        image = cv2.cvtColor(image, cv2.COLOR_BGR2GRAY)
+    return image.astype(np.float32)
+
+
+def search_window(prior: Box, margin: float, width: int, height: int) -> Box:
+    """The region searched for boxes of ``prior``'s size: the prior grown by ``margin`` box sizes each side, clipped."""
+    grown = Box(prior.x - margin * prior.w, prior.y - margin * prior.h,
+                prior.w * (1 + 2 * margin), prior.h * (1 + 2 * margin))
+    return grown.clipped(width, height)
+
+
+def ncc_score_map(gray: np.ndarray, template: np.ndarray, region: Box) -> tuple[np.ndarray, tuple[float, float]]:
+    """NCC of ``template`` at every position inside ``region`` of ``gray``.
+
+    Parameters
+    ----------
+    gray : (H, W) float32
+    template : (h, w) float32
+    region : Box
+        Clipped search region; must be at least the template's size.
+
+    Returns
+    -------
+    scores : (H', W') float32 in [-1, 1]
+        ``scores[i, j]`` for the box with top-left ``origin + (j, i)``.
+    origin : (x0, y0)
+    """
+    x0, y0 = int(np.floor(region.x)), int(np.floor(region.y))
+    x1, y1 = int(np.ceil(region.x + region.w)), int(np.ceil(region.y + region.h))
+    th, tw = template.shape
+    x1, y1 = max(x1, x0 + tw), max(y1, y0 + th)
+    x0, y0 = max(0, min(x0, gray.shape[1] - tw)), max(0, min(y0, gray.shape[0] - th))
+    window = gray[y0:y1, x0:x1]
+    scores = cv2.matchTemplate(window, template, cv2.TM_CCOEFF_NORMED)
+    scores = np.nan_to_num(scores, nan=0.0, posinf=0.0, neginf=0.0)
+    return scores, (float(x0), float(y0))
+
+
+@dataclass
+class NCCScoreMapMeasurer:
+    """Dense NCC detector around the prior, with an online template.
+
+    Parameters
+    ----------
+    margin
+        Search window = prior box grown by this many box sizes on each side.
+    learning_rate
+        Template running-average rate per frame while confident.
+    learn_above
+        Minimum peak NCC score at the estimate for the template to learn.
+    """
+
+    margin: float = 1.0
+    learning_rate: float = 0.05
+    learn_above: float = 0.6
+
+    def initialize(self, frame: Frame, box: Box) -> None:
+        gray = to_gray(frame.image)
+        self.box_size_ = (max(2, int(round(box.w))), max(2, int(round(box.h))))
+        self.template_ = self._patch(gray, box)
+        self.initial_template_ = self.template_.copy()
+        self.last_peak_ = 1.0
+
+    def _patch(self, gray: np.ndarray, box: Box) -> np.ndarray:
+        w, h = self.box_size_
+        x = int(np.clip(round(box.x), 0, gray.shape[1] - w))
+        y = int(np.clip(round(box.y), 0, gray.shape[0] - h))
+        return gray[y:y + h, x:x + w].copy()
+
+    def measure(self, frame: Frame, prior: Estimate) -> ScoreMap | None:
+        gray = to_gray(frame.image)
+        w, h = self.box_size_
+        if w >= gray.shape[1] or h >= gray.shape[0]:
+            return None
+        centre = prior.box.center
+        search_box = Box.from_center(centre[0], centre[1], w, h)
+        region = search_window(search_box, self.margin, gray.shape[1], gray.shape[0])
+        scores, origin = ncc_score_map(gray, self.template_, region)
+        peak = float(scores.max()) if scores.size else 0.0
+        self.last_peak_ = peak
+        shown = Box(origin[0], origin[1], scores.shape[1] + w, scores.shape[0] + h)
+        return ScoreMap(scores=scores, origin=origin, step=1.0, box_size=(float(w), float(h)),
+                        quality=float(np.clip(peak, 0.0, 1.0)), search_region=shown,
+                        stages={"score_map": scores})
+
+    def score_at(self, frame: Frame, box: Box) -> float:
+        """NCC of the current template at ``box`` (used for confidences)."""
+        patch = self._patch(to_gray(frame.image), box)
+        return float(cv2.matchTemplate(patch, self.template_, cv2.TM_CCOEFF_NORMED)[0, 0])
+
+    def learn(self, frame: Frame, posterior: Estimate) -> None:
+        if posterior.status != "tracking" or self.last_peak_ < self.learn_above:
+            return
+        patch = self._patch(to_gray(frame.image), posterior.box)
+        self.template_ = (1 - self.learning_rate) * self.template_ + self.learning_rate * patch
+        # Anchor to the first appearance so drift cannot run away.
+        self.template_ = 0.9 * self.template_ + 0.1 * self.initial_template_

@@ -1,0 +1,73 @@
+"""Drive a tracker over a frame stream into sinks, timing the tracking alone."""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass
+from typing import Callable, Iterable, Sequence
+
+from .sinks.base import Sink
+from .tracker import Tracker
+from .types import Box, Frame, TrackState
+
+
+@dataclass
+class RunResult:
+    """What a run did.
+
+    ``frames`` tracked (init frame included), ``lost_frames`` with status
+    lost, ``track_seconds`` spent in the tracker (decoding and sinks
+    excluded), ``interrupted`` by Ctrl-C, ``decode_error`` when the source
+    stopped early, ``last_state`` the final state.
+    """
+
+    frames: int = 0
+    lost_frames: int = 0
+    track_seconds: float = 0.0
+    interrupted: bool = False
+    decode_error: str | None = None
+    last_state: TrackState | None = None
+
+    @property
+    def fps(self) -> float:
+        """Tracker frames per second (decoding and writing excluded)."""
+        return self.frames / self.track_seconds if self.track_seconds > 0 else float("nan")
+
+
+def run_tracker(tracker: Tracker, frames: Iterable[Frame], init_box: Box, sinks: Sequence[Sink] = (), *,
+                max_frames: int | None = None, on_state: Callable[[TrackState], None] | None = None,
+                validate_box: Callable[[Frame, Box], None] | None = None) -> RunResult:
+    """Track ``init_box`` through ``frames``, writing every state to ``sinks``.
+
+    The sinks are always closed, also after an exception or Ctrl-C (which is
+    swallowed and reported as ``interrupted``), so every frame already tracked
+    is on disk.  ``validate_box(first_frame, box)`` may raise to reject the
+    init box once the frame size is known.
+    """
+    result = RunResult()
+    try:
+        for frame in frames:
+            if max_frames is not None and result.frames >= max_frames:
+                break
+            start = time.perf_counter()
+            if result.frames == 0:
+                if validate_box is not None:
+                    validate_box(frame, init_box)
+                state = tracker.initialize(frame, init_box)
+            else:
+                state = tracker.step(frame)
+            result.track_seconds += time.perf_counter() - start
+            for sink in sinks:
+                sink.write(frame, state)
+            result.frames += 1
+            result.lost_frames += state.status == "lost"
+            result.last_state = state
+            if on_state is not None:
+                on_state(state)
+    except KeyboardInterrupt:
+        result.interrupted = True
+    finally:
+        for sink in sinks:
+            sink.close()
+    result.decode_error = getattr(frames, "decode_error", None)
+    return result

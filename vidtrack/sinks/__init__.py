@@ -1,0 +1,1 @@
+"""Sinks: where TrackStates go (boxes file, CSV log, annotated video, Rerun)."""
