@@ -1,0 +1,142 @@
+"""Tracking metrics: pure functions of box arrays that never modify their inputs.
+
+Boxes are ``(N, 4)`` arrays of ``x, y, w, h`` in one shared convention (a
+1-pixel shift of both arrays changes nothing).  The definitions follow
+Wu, Lim, Yang, "Online Object Tracking: A Benchmark" (CVPR 2013) for the
+success (AUC) and precision plots, and the PASCAL VOC overlap criterion used
+by the PROST (Santner et al., CVPR 2010) and MIL (Babenko et al., CVPR 2009)
+papers:
+
+* IoU of continuous boxes: ``|A ∩ B| / |A ∪ B|`` (OTB's ``calcRectInt`` with
+  its ``+1``/``-1`` pixel terms is the same number);
+* success AUC: mean over thresholds ``t = 0, 0.05, ..., 1`` of the fraction of
+  frames with ``IoU > t``;
+* precision@20: fraction of frames with centre error ``<= 20`` px;
+* PASCAL score: fraction of frames with ``IoU > 0.5``;
+* centre error: Euclidean distance of box centres, mean in px.
+
+Only the frames selected by ``mask`` (by default the annotated ground-truth
+rows, see :func:`~vidtrack.eval.datasets.annotated_rows`) are scored.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .datasets import annotated_rows
+
+#: OTB success-plot thresholds 0, 0.05, ..., 1 (21 values).
+SUCCESS_THRESHOLDS = np.linspace(0.0, 1.0, 21)
+#: OTB precision-plot thresholds 0 .. 50 px.
+PRECISION_THRESHOLDS = np.arange(0, 51, dtype=float)
+METRIC_NAMES = ("auc", "precision20", "pascal", "center_error")
+
+
+def _as_boxes(boxes) -> np.ndarray:
+    # np.array copies: nothing below can write into the caller's array
+    return np.array(boxes, dtype=float).reshape(-1, 4)
+
+
+def iou(boxes_a, boxes_b) -> np.ndarray:
+    """Row-wise intersection over union of two ``(N, 4)`` box arrays -> ``(N,)``.
+
+    Rows with a non-finite value or a non-positive size give 0.
+    """
+    a, b = _as_boxes(boxes_a), _as_boxes(boxes_b)
+    if a.shape != b.shape:
+        raise ValueError(f"box arrays differ in shape: {a.shape} vs {b.shape}")
+    with np.errstate(invalid="ignore"):
+        # |A ∩ B| = max(0, min(x2) - max(x1)) * max(0, min(y2) - max(y1))
+        iw = np.minimum(a[:, 0] + a[:, 2], b[:, 0] + b[:, 2]) - np.maximum(a[:, 0], b[:, 0])
+        ih = np.minimum(a[:, 1] + a[:, 3], b[:, 1] + b[:, 3]) - np.maximum(a[:, 1], b[:, 1])
+        inter = np.clip(iw, 0.0, None) * np.clip(ih, 0.0, None)
+        union = a[:, 2] * a[:, 3] + b[:, 2] * b[:, 3] - inter
+        out = np.where(union > 0, inter / np.where(union > 0, union, 1.0), 0.0)
+    valid = annotated_rows(a) & annotated_rows(b)
+    return np.where(valid & np.isfinite(out), out, 0.0)
+
+
+def center_error(boxes_a, boxes_b) -> np.ndarray:
+    """Row-wise distance between box centres ``(x + w/2, y + h/2)`` -> ``(N,)`` px.
+
+    Rows with a non-finite value give ``inf`` (a failure at every threshold).
+    """
+    a, b = _as_boxes(boxes_a), _as_boxes(boxes_b)
+    if a.shape != b.shape:
+        raise ValueError(f"box arrays differ in shape: {a.shape} vs {b.shape}")
+    ca = a[:, :2] + a[:, 2:] / 2.0
+    cb = b[:, :2] + b[:, 2:] / 2.0
+    distance = np.hypot(ca[:, 0] - cb[:, 0], ca[:, 1] - cb[:, 1])
+    return np.where(np.isfinite(distance), distance, np.inf)
+
+
+def success_curve(ious, thresholds=SUCCESS_THRESHOLDS) -> np.ndarray:
+    """Fraction of frames with ``IoU > t`` for each threshold ``t`` (OTB success plot)."""
+    ious = np.asarray(ious, dtype=float).ravel()
+    thresholds = np.asarray(thresholds, dtype=float)
+    if ious.size == 0:
+        return np.full(thresholds.shape, np.nan)
+    return (ious[None, :] > thresholds[:, None]).mean(axis=1)
+
+
+def precision_curve(errors, thresholds=PRECISION_THRESHOLDS) -> np.ndarray:
+    """Fraction of frames with centre error ``<= t`` for each ``t`` px (OTB precision plot)."""
+    errors = np.asarray(errors, dtype=float).ravel()
+    thresholds = np.asarray(thresholds, dtype=float)
+    if errors.size == 0:
+        return np.full(thresholds.shape, np.nan)
+    return (errors[None, :] <= thresholds[:, None]).mean(axis=1)
+
+
+def success_auc(ious) -> float:
+    """OTB success AUC: mean of :func:`success_curve` over ``0, 0.05, ..., 1``."""
+    return float(np.mean(success_curve(ious)))
+
+
+def precision_at(errors, threshold: float = 20.0) -> float:
+    """Fraction of frames with centre error ``<= threshold`` px."""
+    return float(precision_curve(errors, [threshold])[0])
+
+
+def pascal_score(ious, threshold: float = 0.5) -> float:
+    """Fraction of frames with ``IoU > threshold`` (PASCAL VOC criterion)."""
+    return float(success_curve(ious, [threshold])[0])
+
+
+def frame_scores(results, ground_truth, mask=None) -> tuple[np.ndarray, np.ndarray]:
+    """Per scored frame ``(ious, centre_errors)``.
+
+    Parameters
+    ----------
+    results, ground_truth
+        ``(N, 4)`` box arrays, same convention, row ``i`` = frame ``i``.
+    mask
+        ``(N,)`` bool of the frames to score; always intersected with the
+        annotated ground-truth rows.
+    """
+    results, ground_truth = _as_boxes(results), _as_boxes(ground_truth)
+    if results.shape != ground_truth.shape:
+        raise ValueError(f"{len(results)} result rows for {len(ground_truth)} ground-truth rows")
+    keep = annotated_rows(ground_truth)
+    if mask is not None:
+        keep = keep & np.asarray(mask, dtype=bool).ravel()
+    return iou(results[keep], ground_truth[keep]), center_error(results[keep], ground_truth[keep])
+
+
+def score(results, ground_truth, mask=None) -> dict[str, float]:
+    """``auc``, ``precision20``, ``pascal``, ``center_error`` and ``frames`` (count scored).
+
+    See :func:`frame_scores` for the arguments.  With no frame to score every
+    metric is NaN.
+    """
+    ious, errors = frame_scores(results, ground_truth, mask)
+    if ious.size == 0:
+        return {"auc": float("nan"), "precision20": float("nan"), "pascal": float("nan"),
+                "center_error": float("nan"), "frames": 0}
+    return {
+        "auc": success_auc(ious),
+        "precision20": precision_at(errors, 20.0),
+        "pascal": pascal_score(ious, 0.5),
+        "center_error": float(np.mean(errors)),
+        "frames": int(ious.size),
+    }
