@@ -1,0 +1,603 @@
+"""Rerun recording sink: every pipeline stage of every frame, headless by default.
+
+The only module of vidtrack that imports ``rerun`` (rerun-sdk 0.41).  One
+recording per :class:`RerunSink`, on its own :class:`rerun.RecordingStream`
+(never the global one), so one process can write many recordings (one per
+tracker and sequence in ``vidtrack eval --rerun DIR``).
+
+Layout of a recording (one timeline, ``frame``; keep these names so that
+recordings of different versions line up):
+
+==============================  ===============================================
+entity                          content
+==============================  ===============================================
+``video/frame``                 the frame, JPEG (never raw)
+``video/boxes/estimate``        the filter's box (green, red while lost)
+``video/boxes/predicted``       the prior (blue)
+``video/boxes/measured``        the raw measurement (amber)
+``video/boxes/ground_truth``    the annotated box (white; eval only)
+``video/search_region``         where the measurer looked (grey)
+``stages/superpixels``          SegmentationImage, every ``superpixels_every``-th frame
+``stages/<image stage>``        ``svm_scores``, ``inliers``, ``score_map``,
+                                ``backprojection`` ... as small JPEG/PNG images
+``stages/<point stage>``        ``particles``, ``detections``: Points2D, radius by weight
+``filter/<name>``               ``confidence`` and the filter's scalars (time series)
+``log/status``                  TextLog: start, lost, re-acquired
+==============================  ===============================================
+
+Image stages cover the search region (``TrackState.search_region``; names
+ending in ``_full`` cover the whole frame).  Each is logged with a
+``Transform3D`` (translation + per-axis scale) that maps its pixel grid onto
+that region, so in frame coordinates it lies exactly where it was computed;
+the default blueprint shows each one over the frame.  An entity that had data
+on the previous frame but has none now (no measurement, a frame without
+ground truth) is cleared, so the viewer never shows a stale box or stage.
+"""
+
+from __future__ import annotations
+
+import re
+import uuid
+from pathlib import Path
+from typing import Any, Mapping
+
+import cv2
+import numpy as np
+import rerun as rr
+import rerun.blueprint as rrb
+
+from ..errors import OutputError, UsageError
+from ..types import Box, Frame, TrackState
+
+#: Stage names that are point sets ``(N, 2|3)`` ``[x, y, weight]`` in frame coordinates.
+POINT_STAGES = ("particles", "detections")
+#: Stage names that are label images shown as a SegmentationImage.
+LABEL_STAGES = ("superpixels",)
+
+# Colours are RGB (rerun's order, not OpenCV's).
+ESTIMATE_RGB = (0, 220, 0)
+LOST_RGB = (230, 0, 0)
+PREDICTED_RGB = (0, 160, 255)
+MEASURED_RGB = (255, 200, 0)
+GROUND_TRUTH_RGB = (255, 255, 255)
+REGION_RGB = (160, 160, 160)
+POINT_RGB = {"particles": (255, 120, 0), "detections": (255, 0, 255)}
+OTHER_POINT_RGB = (0, 230, 230)
+
+_COLORMAPS = {"viridis": cv2.COLORMAP_VIRIDIS, "jet": cv2.COLORMAP_JET, "inferno": cv2.COLORMAP_INFERNO,
+              "turbo": cv2.COLORMAP_TURBO, "gray": None}
+
+
+# ----------------------------------------------------------------- pure image/point helpers
+
+
+def nearest_resize(image: np.ndarray, max_side: int) -> np.ndarray:
+    """Nearest-neighbour downscale of ``image`` ``(h, w[, c])`` so its longer side is at most ``max_side``.
+
+    Works for any dtype (labels, masks); returns ``image`` itself when it is small enough.
+    """
+    h, w = image.shape[:2]
+    if max(h, w) <= max_side or max_side <= 0:
+        return image
+    f = max_side / max(h, w)
+    h2, w2 = max(1, int(round(h * f))), max(1, int(round(w * f)))
+    rows = np.minimum((np.arange(h2) + 0.5) * h / h2, h - 1).astype(np.intp)
+    cols = np.minimum((np.arange(w2) + 0.5) * w / w2, w - 1).astype(np.intp)
+    return image[rows[:, None], cols[None, :]]
+
+
+def area_resize(image: np.ndarray, max_side: int) -> np.ndarray:
+    """Area-averaging downscale (``cv2.INTER_AREA``) to a longer side of at most ``max_side``."""
+    h, w = image.shape[:2]
+    if max(h, w) <= max_side or max_side <= 0:
+        return image
+    f = max_side / max(h, w)
+    size = (max(1, int(round(w * f))), max(1, int(round(h * f))))
+    return cv2.resize(image, size, interpolation=cv2.INTER_AREA)
+
+
+def float_to_uint8(image: np.ndarray) -> np.ndarray:
+    """Map a real-valued image ``(h, w)`` to ``uint8`` for display.
+
+    Values already in ``[0, 1]`` (probabilities, back-projections) map linearly
+    from ``[0, 1]``; values in ``[-1, 1]`` (NCC scores) from ``[-1, 1]``; anything
+    else is stretched from its own min to max.  NaN and infinities become the
+    lowest value.
+    """
+    img = np.asarray(image, dtype=np.float32)
+    finite = np.isfinite(img)
+    if not finite.any():
+        return np.zeros(img.shape, dtype=np.uint8)
+    lo, hi = float(img[finite].min()), float(img[finite].max())
+    if lo >= 0.0 and hi <= 1.0:
+        lo, hi = 0.0, 1.0
+    elif lo >= -1.0 and hi <= 1.0:
+        lo, hi = -1.0, 1.0
+    scale = 255.0 / (hi - lo) if hi > lo else 0.0
+    out = np.where(finite, (img - lo) * scale, 0.0)
+    return np.clip(out + 0.5, 0, 255).astype(np.uint8)
+
+
+def is_mask(image: np.ndarray) -> bool:
+    """True for boolean images and integer images whose values are only 0/1 or 0/255."""
+    if image.dtype == bool:
+        return True
+    if not np.issubdtype(image.dtype, np.integer) or image.ndim != 2 or image.size == 0:
+        return False
+    lo, hi = int(image.min()), int(image.max())
+    if lo < 0:
+        return False
+    return hi <= 1 or (image.dtype == np.uint8 and hi == 255 and not np.any((image > 0) & (image < 255)))
+
+
+def encode_jpeg(image: np.ndarray, quality: int) -> bytes:
+    """JPEG bytes of ``image`` ``(h, w)`` grey or ``(h, w, 3)`` BGR uint8."""
+    ok, buf = cv2.imencode(".jpg", image, [cv2.IMWRITE_JPEG_QUALITY, int(quality)])
+    if not ok:
+        raise ValueError("JPEG encoding failed")
+    return buf.tobytes()
+
+
+def encode_png(image: np.ndarray) -> bytes:
+    """PNG bytes of ``image`` ``(h, w)`` uint8 (lossless: masks)."""
+    ok, buf = cv2.imencode(".png", image, [cv2.IMWRITE_PNG_COMPRESSION, 6])
+    if not ok:
+        raise ValueError("PNG encoding failed")
+    return buf.tobytes()
+
+
+def display_image(image: np.ndarray, *, max_side: int, colormap: str | None,
+                  jpeg_quality: int) -> tuple[bytes, str, tuple[int, int]]:
+    """Encode a stage image for the recording.
+
+    Parameters
+    ----------
+    image
+        ``(h, w)`` bool/int mask, ``(h, w)`` real-valued map, or ``(h, w, 3) uint8`` BGR.
+    max_side
+        Longer side of the encoded image at most this (downscaled, never upscaled).
+    colormap
+        OpenCV colormap name for single-channel maps (``None`` or ``"gray"``: grey).
+    jpeg_quality
+        JPEG quality of maps and colour images; masks are PNG (lossless).
+
+    Returns
+    -------
+    contents, media_type, (h, w)
+        The encoded bytes, their MIME type and the encoded size.
+    """
+    image = np.asarray(image)
+    if is_mask(image):
+        small = nearest_resize((image > 0).astype(np.uint8) * 255, max_side)
+        return encode_png(small), "image/png", small.shape[:2]
+    if image.ndim == 3 and image.shape[2] == 3 and image.dtype == np.uint8:
+        small = area_resize(image, max_side)
+        return encode_jpeg(small, jpeg_quality), "image/jpeg", small.shape[:2]
+    if image.ndim == 3:
+        image = image[..., 0]
+    small = area_resize(float_to_uint8(image), max_side)
+    cmap = _COLORMAPS.get(colormap or "gray")
+    if cmap is not None:
+        small = cv2.applyColorMap(small, cmap)
+    return encode_jpeg(small, jpeg_quality), "image/jpeg", small.shape[:2]
+
+
+def labels_for_segmentation(labels: np.ndarray, max_side: int) -> np.ndarray:
+    """Label image ``(h, w) int`` -> ``uint16`` class ids starting at 1 (0 stays unused), downscaled."""
+    lab = nearest_resize(np.asarray(labels), max_side).astype(np.int64)
+    if lab.size:
+        lab = lab - lab.min()
+    return (lab % 65535 + 1).astype(np.uint16)
+
+
+def point_display(points: np.ndarray, *, max_points: int,
+                  radius_range: tuple[float, float]) -> tuple[np.ndarray, np.ndarray]:
+    """Positions ``(K, 2) float32`` and radii ``(K,)`` of a point stage ``(N, 2|3)`` ``[x, y, weight]``.
+
+    Non-finite rows are dropped; when ``N > max_points`` the ``max_points``
+    heaviest are kept.  The radius grows with ``sqrt(weight / max weight)`` from
+    ``radius_range[0]`` to ``radius_range[1]`` pixels (area proportional to
+    weight); without weights every point gets the mean radius.
+    """
+    pts = np.asarray(points, dtype=np.float64).reshape(len(points), -1)
+    r0, r1 = radius_range
+    if pts.shape[1] >= 3:
+        keep = np.all(np.isfinite(pts[:, :3]), axis=1)
+        pts = pts[keep]
+        w = np.clip(pts[:, 2], 0.0, None)
+        if max_points > 0 and len(pts) > max_points:
+            top = np.argpartition(-w, max_points - 1)[:max_points]
+            pts, w = pts[top], w[top]
+        wmax = float(w.max()) if len(w) else 0.0
+        radii = r0 + (r1 - r0) * np.sqrt(w / wmax) if wmax > 0 else np.full(len(pts), r0)
+    else:
+        pts = pts[np.all(np.isfinite(pts[:, :2]), axis=1)]
+        if max_points > 0 and len(pts) > max_points:
+            pts = pts[:max_points]
+        radii = np.full(len(pts), 0.5 * (r0 + r1))
+    return pts[:, :2].astype(np.float32), radii.astype(np.float32)
+
+
+def stage_kind(name: str, value: Any) -> str | None:
+    """How a stage is shown: ``"labels"``, ``"points"``, ``"image"`` or None (not displayable)."""
+    arr = np.asarray(value) if not isinstance(value, np.ndarray) else value
+    if name in LABEL_STAGES and arr.ndim == 2:
+        return "labels"
+    if name in POINT_STAGES:
+        return "points" if arr.ndim == 2 and arr.shape[1] in (2, 3) or arr.size == 0 else None
+    if arr.ndim == 2 and arr.shape[1] in (2, 3) and arr.shape[0] != arr.shape[1] and arr.dtype.kind == "f" \
+            and arr.shape[0] > 0 and not name.endswith("_full"):
+        return "points"
+    if arr.ndim == 2 and min(arr.shape) > 0 and arr.dtype.kind in "biuf":
+        return "image"
+    if arr.ndim == 3 and arr.shape[2] in (1, 3) and min(arr.shape[:2]) > 0 and arr.dtype.kind in "biuf":
+        return "image"
+    return None
+
+
+def region_transform(region: Box, shape: tuple[int, int]) -> tuple[list[float], list[float]]:
+    """Translation and scale that map a ``(h, w)`` pixel grid onto ``region`` (frame coordinates)."""
+    h, w = shape
+    return [float(region.x), float(region.y), 0.0], [float(region.w) / w, float(region.h) / h, 1.0]
+
+
+def entity_name(name: str) -> str:
+    """A stage or scalar name made safe as one entity-path part."""
+    return re.sub(r"[^A-Za-z0-9_.-]", "_", str(name)) or "_"
+
+
+#: Box entities -> (RGB, label, line radius px, draw order); logged once as static style.
+BOX_STYLES = {
+    "video/boxes/estimate": (ESTIMATE_RGB, "estimate", 1.5, 12.0),
+    "video/boxes/predicted": (PREDICTED_RGB, "predicted", 1.0, 10.0),
+    "video/boxes/measured": (MEASURED_RGB, "measured", 1.0, 10.0),
+    "video/boxes/ground_truth": (GROUND_TRUTH_RGB, "ground truth", 1.0, 11.0),
+    "video/search_region": (REGION_RGB, "search region", 1.0, 5.0),
+}
+
+
+def _box_fields(box: Box) -> rr.Boxes2D:
+    """The per-frame part of a box (centre and half size); style is static."""
+    x, y, w, h = box.x, box.y, box.w, box.h
+    return rr.Boxes2D.from_fields(centers=[(x + w / 2.0, y + h / 2.0)], half_sizes=[(w / 2.0, h / 2.0)])
+
+
+# ----------------------------------------------------------------- the sink
+
+
+class RerunSink:
+    """Writes every :class:`TrackState` and its stages to a Rerun recording (``.rrd``).
+
+    Parameters
+    ----------
+    path
+        The ``.rrd`` file to write (parents are created), or None with ``spawn``.
+    filter_name
+        The tracker's name (recording name and start message).
+    ground_truth
+        Frame index -> annotated box, logged as ``video/boxes/ground_truth`` on
+        the frames that have one (invalid boxes mean "not annotated").
+    spawn
+        Also stream to a newly spawned Rerun viewer (needs a screen).
+    superpixels_every
+        Log ``stages/superpixels`` (a SegmentationImage, the largest stage) on
+        every N-th frame only; the viewer keeps showing the last one.
+    jpeg_quality
+        JPEG quality of the frame.
+    stage_every
+        Log the other image stages every N-th frame (1: every frame).
+    stage_max_side
+        Longer side of logged stage images at most this many pixels.
+    stage_jpeg_quality
+        JPEG quality of real-valued stage images (masks are PNG, lossless).
+    colormap
+        Colormap of real-valued stage images: viridis, jet, inferno, turbo or gray.
+    max_points
+        At most this many points per point stage per frame (the heaviest).
+    point_radius
+        Point radius range in pixels, from zero weight to the largest weight.
+    application_id
+        Rerun application id (recordings of one application share blueprints).
+
+    Raises
+    ------
+    OutputError
+        When ``path`` cannot be written or the viewer cannot be spawned.
+    """
+
+    def __init__(self, path: str | Path | None, *, filter_name: str,
+                 ground_truth: Mapping[int, Box] | None = None, spawn: bool = False,
+                 superpixels_every: int = 5, jpeg_quality: int = 75, stage_every: int = 1,
+                 stage_max_side: int = 128, stage_jpeg_quality: int = 80, colormap: str | None = "viridis",
+                 max_points: int = 300, point_radius: tuple[float, float] = (0.5, 4.0),
+                 application_id: str = "vidtrack") -> None:
+        if path is None and not spawn:
+            raise UsageError("a Rerun recording needs a file path or spawn=True")
+        if superpixels_every < 1 or stage_every < 1:
+            raise UsageError("superpixels_every and stage_every must be at least 1")
+        if not 1 <= jpeg_quality <= 100 or not 1 <= stage_jpeg_quality <= 100:
+            raise UsageError("JPEG qualities must lie in 1..100")
+        if colormap is not None and colormap not in _COLORMAPS:
+            raise UsageError(f"unknown colormap {colormap!r}; valid: {', '.join(_COLORMAPS)}")
+        self.path = Path(path) if path is not None else None
+        self.filter_name = filter_name
+        self.ground_truth = dict(ground_truth) if ground_truth is not None else {}
+        self.spawn = spawn
+        self.superpixels_every = int(superpixels_every)
+        self.jpeg_quality = int(jpeg_quality)
+        self.stage_every = int(stage_every)
+        self.stage_max_side = int(stage_max_side)
+        self.stage_jpeg_quality = int(stage_jpeg_quality)
+        self.colormap = colormap
+        self.max_points = int(max_points)
+        self.point_radius = (float(point_radius[0]), float(point_radius[1]))
+        self.application_id = application_id
+
+        self._shown: set[str] = set()           # entities showing data of the previous frame
+        self._image_stages: list[str] = []      # image stage names seen, in order (blueprint)
+        self._point_stages: list[str] = []
+        self._blueprint_key: tuple | None = None
+        self._last_status: str | None = None
+        self._estimate_rgb: tuple | None = None  # colour last logged on the estimate box
+        self._styled: set[str] = set()           # entities whose static style is logged
+        self._frames_written = 0
+        self._rec: rr.RecordingStream | None = None
+        self._open()
+
+    # -- setup and teardown
+
+    def _open(self) -> None:
+        if self.path is not None:
+            try:
+                if self.path.is_dir():
+                    raise OutputError(f"cannot write {self.path}: it is a folder")
+                self.path.parent.mkdir(parents=True, exist_ok=True)
+                with open(self.path, "wb"):
+                    pass  # fail now, with a clear message, if the path is not writable
+            except OSError as exc:
+                raise OutputError(f"cannot write {self.path}: {exc.strerror or exc}") from None
+        rec = rr.RecordingStream(self.application_id, recording_id=uuid.uuid4())
+        rec.set_log_time_enabled(False)  # one timeline: frame
+        rec.set_log_tick_enabled(False)
+        blueprint = self._blueprint()
+        try:
+            if self.spawn:
+                rec.spawn(connect=False, hide_welcome_screen=True)
+                if self.path is not None:
+                    rec.set_sinks(rr.GrpcSink(), rr.FileSink(self.path), default_blueprint=blueprint)
+                else:
+                    rec.connect_grpc(default_blueprint=blueprint)
+            else:
+                rec.save(self.path, default_blueprint=blueprint)
+        except Exception as exc:  # rerun raises plain RuntimeError/ValueError
+            target = "a Rerun viewer" if self.path is None else str(self.path)
+            raise OutputError(f"cannot write {target}: {str(exc).splitlines()[0] if str(exc) else exc}") from None
+        rec.send_recording_name(f"vidtrack {self.filter_name}")
+        self._rec = rec
+        self._blueprint_key = self._layout_key()
+
+    def close(self) -> None:
+        """Finish the recording: flush and write the footer, so the file is complete.
+
+        Safe to call twice; also called by ``run_tracker`` after Ctrl-C.
+        """
+        rec, self._rec = self._rec, None
+        if rec is None:
+            return
+        try:
+            rec.flush()
+        finally:
+            rec.disconnect()  # drops the file sink, which writes the RRD footer
+
+    def __enter__(self) -> "RerunSink":
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()
+
+    # -- blueprint
+
+    def _layout_key(self) -> tuple:
+        return tuple(self._image_stages), tuple(self._point_stages)
+
+    def _blueprint(self) -> rrb.Blueprint:
+        """Frame with boxes and point stages; one overlay view per image stage; time series; status log."""
+        overlay = ["+ video/frame", "+ video/boxes/**", "+ video/search_region"]
+        frame_view = rrb.Spatial2DView(name="frame", origin="/",
+                                       contents=["+ video/**", *(f"+ stages/{p}" for p in self._point_stages)])
+        left = rrb.Vertical(frame_view, rrb.TextLogView(name="status", origin="log"), row_shares=[4, 1])
+        plots = rrb.TimeSeriesView(name="filter", origin="filter")
+        if self._image_stages:
+            stage_views = [rrb.Spatial2DView(name=s, origin="/", contents=[*overlay, f"+ stages/{s}"])
+                           for s in self._image_stages]
+            right = rrb.Vertical(rrb.Grid(*stage_views), plots, row_shares=[3, 2])
+        else:
+            right = plots
+        return rrb.Blueprint(rrb.Horizontal(left, right, column_shares=[3, 2]), collapse_panels=False)
+
+    def _update_blueprint(self) -> None:
+        key = self._layout_key()
+        if key != self._blueprint_key:
+            self._rec.send_blueprint(self._blueprint(), make_active=True, make_default=True)
+            self._blueprint_key = key
+
+    # -- writing
+
+    def _style(self, path: str, kind: str, name: str = "") -> None:
+        """Log ``path``'s colours, labels, widths and draw order once, as static data.
+
+        Frames then carry only geometry and pixels (smaller and faster); entities
+        get a style only when first used, so a recording lists only what it shows.
+        """
+        if path in self._styled:
+            return
+        if kind == "box":
+            rgb, label, radius, order = BOX_STYLES[path]
+            colours = None if path == "video/boxes/estimate" else [rgb]   # the estimate's follows its status
+            style = rr.Boxes2D.from_fields(colors=colours, labels=[label], show_labels=False,
+                                           radii=[radius], draw_order=order)
+        elif kind == "frame":
+            style = rr.EncodedImage.from_fields(draw_order=-20.0)
+        elif kind == "points":
+            style = rr.Points2D.from_fields(colors=[POINT_RGB.get(name, OTHER_POINT_RGB)], draw_order=30.0)
+        elif kind == "labels":
+            style = rr.SegmentationImage.from_fields(opacity=0.6, draw_order=-10.0)
+        else:
+            style = rr.EncodedImage.from_fields(draw_order=-10.0)
+        self._rec.log(path, style, static=True)
+        self._styled.add(path)
+
+    def write(self, frame: Frame, state: TrackState) -> None:
+        """Log ``frame`` and ``state`` on timeline ``frame`` at ``state.index``."""
+        rec = self._rec
+        if rec is None:
+            raise OutputError(f"cannot write {self.path or 'to Rerun'}: the recording is closed")
+        rec.set_time("frame", sequence=int(state.index))
+        logged: set[str] = set()
+        kept: set[str] = set()
+
+        def log(path: str, archetype) -> None:
+            rec.log(path, archetype)
+            logged.add(path)
+
+        self._style("video/frame", "frame")
+        log("video/frame", rr.EncodedImage(contents=encode_jpeg(frame.image, self.jpeg_quality),
+                                           media_type="image/jpeg"))
+        if state.box is not None and state.box.is_valid():
+            rgb = LOST_RGB if state.status == "lost" else ESTIMATE_RGB
+            self._style("video/boxes/estimate", "box")
+            if rgb != self._estimate_rgb:
+                rec.log("video/boxes/estimate", rr.Boxes2D.from_fields(colors=[rgb]))
+                self._estimate_rgb = rgb
+            log("video/boxes/estimate", _box_fields(state.box))
+        gt = self.ground_truth.get(int(state.index))
+        for path, box in (("video/boxes/predicted", state.predicted), ("video/boxes/measured", state.measured),
+                          ("video/search_region", state.search_region), ("video/boxes/ground_truth", gt)):
+            if box is not None and box.is_valid():
+                self._style(path, "box")
+                log(path, _box_fields(box))
+
+        for name, value in state.stages.items():
+            self._log_stage(frame, state, entity_name(name), value, log, kept)
+
+        log("filter/confidence", rr.Scalars(float(state.confidence)))
+        for name, value in state.scalars.items():
+            if name == "confidence":
+                continue
+            try:
+                number = float(value)
+            except (TypeError, ValueError):
+                continue
+            log(f"filter/{entity_name(name)}", rr.Scalars(number))
+
+        self._log_status(state)
+        for path in sorted(self._shown - logged - kept):
+            if not path.startswith("filter/"):   # a missing scalar is a gap, not a clear
+                rec.log(path, rr.Clear(recursive=False))
+                if path == "video/boxes/estimate":
+                    self._estimate_rgb = None     # the clear removed its colour too
+        self._shown = logged | kept
+        self._update_blueprint()
+        self._frames_written += 1
+
+    def _log_stage(self, frame: Frame, state: TrackState, name: str, value, log, kept: set[str]) -> None:
+        path = f"stages/{name}"
+        if value is None:
+            return
+        arr = value if isinstance(value, np.ndarray) else np.asarray(value)
+        if arr.ndim == 0:
+            if arr.dtype.kind in "biuf":
+                log(path, rr.Scalars(float(arr)))
+            return
+        kind = stage_kind(name, arr)
+        if kind is None:
+            return
+        if kind == "points":
+            if name not in self._point_stages:
+                self._point_stages.append(name)
+            if arr.size == 0:
+                return  # nothing to show: cleared below as absent
+            self._style(path, kind, name)
+            positions, radii = point_display(arr, max_points=self.max_points, radius_range=self.point_radius)
+            log(path, rr.Points2D.from_fields(positions=positions, radii=radii))
+            return
+
+        every = self.superpixels_every if kind == "labels" else self.stage_every
+        if int(state.index) % every != 0:
+            if path in self._shown:
+                kept.add(path)   # rate-limited: keep showing the last one
+            return
+        region = None if name.endswith("_full") else state.search_region
+        if region is None or not region.is_valid():
+            region = Box(0.0, 0.0, float(frame.width), float(frame.height))
+        if name not in self._image_stages:
+            self._image_stages.append(name)
+        self._style(path, kind, name)
+        if kind == "labels":
+            labels = labels_for_segmentation(arr, self.stage_max_side)
+            shape = labels.shape
+            archetype = rr.SegmentationImage(labels)
+        else:
+            contents, media_type, shape = display_image(arr, max_side=self.stage_max_side,
+                                                        colormap=self.colormap,
+                                                        jpeg_quality=self.stage_jpeg_quality)
+            archetype = rr.EncodedImage(contents=contents, media_type=media_type)
+        translation, scale = region_transform(region, shape)
+        self._rec.log(path, rr.Transform3D(translation=translation, scale=scale))
+        log(path, archetype)
+
+    def _log_status(self, state: TrackState) -> None:
+        status = state.status
+        if self._last_status is None:
+            text = f"frame {state.index}: {self.filter_name} starts {status} at {state.box}"
+            self._rec.log("log/status", rr.TextLog(text, level="INFO"))
+        elif status != self._last_status:
+            if status == "lost":
+                text = f"frame {state.index}: lost (confidence {state.confidence:.2f}), predicting {state.box}"
+                self._rec.log("log/status", rr.TextLog(text, level="WARN"))
+            else:
+                text = f"frame {state.index}: re-acquired at {state.box} (confidence {state.confidence:.2f})"
+                self._rec.log("log/status", rr.TextLog(text, level="INFO"))
+        self._last_status = status
+
+
+# ----------------------------------------------------------------- reading back
+
+
+def read_recording(path: str | Path) -> dict[str, list[int]]:
+    """Entity path -> sorted ``frame`` indices with data (``Clear`` rows excluded) in an ``.rrd`` file.
+
+    For tests and tools that check what a recording holds without a viewer.
+    Static entities map to an empty list.
+
+    Raises
+    ------
+    OutputError
+        When the file cannot be read as a Rerun recording.
+    """
+    from rerun.chunk import RrdReader
+
+    frames: dict[str, set[int]] = {}
+    try:
+        for chunk in RrdReader(str(path)).stream():
+            entity = chunk.entity_path.lstrip("/")
+            if entity.startswith("__"):
+                continue
+            batch = chunk.to_record_batch()
+            seen = frames.setdefault(entity, set())
+            if "frame" not in batch.schema.names:
+                continue
+            data_columns = [n for n in batch.schema.names
+                            if ":" in n and not n.startswith("Clear:") and not n.startswith("rerun.")]
+            if not data_columns:
+                continue
+            index = batch.column("frame").to_pylist()
+            present = np.zeros(len(index), dtype=bool)
+            for column in data_columns:
+                present |= ~np.asarray(batch.column(column).is_null().to_pylist(), dtype=bool)
+            seen.update(int(i) for i, p in zip(index, present) if p and i is not None)
+    except OutputError:
+        raise
+    except Exception as exc:
+        raise OutputError(f"cannot read Rerun recording {path}: {str(exc).splitlines()[0] if str(exc) else exc}") from None
+    return {entity: sorted(idx) for entity, idx in sorted(frames.items())}
