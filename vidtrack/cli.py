@@ -68,8 +68,9 @@ def progress_bar(iterable=None, *, total=None, desc=None, quiet=False, unit="fra
     """A tqdm progress bar on stderr (frames, rate, ETA), or the bare iterable when quiet."""
     from tqdm import tqdm
 
+    interactive = sys.stderr.isatty()
     return tqdm(iterable, total=total, desc=desc, unit=unit, disable=quiet, file=sys.stderr,
-                dynamic_ncols=True, leave=False)
+                dynamic_ncols=True, leave=False, mininterval=0.2 if interactive else 10.0)
 
 
 # ---------------------------------------------------------------- track

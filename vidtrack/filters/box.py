@@ -124,10 +124,21 @@ class CentreFilter:
 
 
 class PassThroughFilter:
-    """No filtering: the estimate is the last accepted measurement's box."""
+    """No filtering: the estimate is the last accepted measurement's box.
 
-    def __init__(self, *, lost_below: float = 0.6) -> None:
+    Parameters
+    ----------
+    lost_below
+        Below this measurement quality the status is ``lost``.
+    follow_when_lost
+        Take the measured box even when its quality says ``lost`` (for
+        trackers such as OpenCV's whose box is their own best guess); if
+        False the last good box is kept.
+    """
+
+    def __init__(self, *, lost_below: float = 0.6, follow_when_lost: bool = False) -> None:
         self.lost_below = lost_below
+        self.follow_when_lost = follow_when_lost
 
     def initialize(self, box: Box, frame: Frame | None = None) -> None:
         self.estimate_ = Estimate(box, None, 1.0, TRACKING)
@@ -142,8 +153,10 @@ class PassThroughFilter:
     def update(self, measurement: Measurement | None) -> Estimate:
         box = measurement_box(measurement)
         quality = 0.0 if measurement is None else float(measurement.quality)
-        if box is None or quality < self.lost_below:
+        if box is None:
             self.estimate_ = Estimate(self.estimate_.box, None, quality, LOST)
+        elif quality < self.lost_below:
+            self.estimate_ = Estimate(box if self.follow_when_lost else self.estimate_.box, None, quality, LOST)
         else:
             self.estimate_ = Estimate(box, None, quality, TRACKING)
         return self.estimate_

@@ -90,14 +90,18 @@ def axis_transition(model: str, dt: float, order: int | None = None) -> np.ndarr
 
 
 def axis_process_noise(model: str, dt: float, q: float, order: int | None = None) -> np.ndarray:
-    """Discrete white-noise process covariance of ``model`` (intensity ``q``).
+    """Discrete white-noise process covariance ``Q = q G G'`` of ``model``.
 
-    The highest derivative the model carries receives a random step of
-    variance ``q`` per frame: ``Q = q G G'`` with ``G = [dt^n/n!, ..., 1]``.
+    Bar-Shalom et al. (2001), section 6.3: drift, a random walk with
+    velocity noise, ``G = [dt]``; constant velocity, discrete white noise
+    acceleration (DWNA), ``G = [dt^2/2, dt]``; constant acceleration,
+    discrete Wiener process acceleration (DWPA), ``G = [dt^2/2, dt, 1]``.
+    ``q`` is the variance of the driving noise.
     """
     native = MOTION_ORDERS[model]
     order = native if order is None else order
-    gains = np.array([1.0, dt, 0.5 * dt * dt])[:native][::-1]  # e.g. ca: [dt^2/2, dt, 1]
+    gains = {"dr": np.array([dt]), "cv": np.array([0.5 * dt * dt, dt]),
+             "ca": np.array([0.5 * dt * dt, dt, 1.0])}[model]
     Q = np.zeros((order, order))
     Q[:native, :native] = q * np.outer(gains, gains)
     return Q
@@ -153,3 +157,27 @@ class KalmanFilter:
     def likelihood_of(self, z: np.ndarray, R: np.ndarray | None = None) -> KalmanUpdate:
         """What :meth:`update` would return, without changing the state."""
         return kf_update(self.x_, self.P_, z, self.H, self.R if R is None else R)
+
+
+def measured_axis_model(model: str, *, dt: float, q: float, r: float, n_measured: int = 2,
+                        order: int | None = None, unmodelled_q: float = 0.0
+                        ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """``(F, Q, H, R)`` of one axis whose first ``n_measured`` derivatives are measured.
+
+    The 1-D setting of Salti & Di Stefano's simulations (On-line Support
+    Vector Regression of the Transition Model for the Kalman Filter, sec. 7):
+    position and velocity both measured with ``R = r I``, every model tuned
+    with ``Q = q I`` on the components it carries ("Q = 1e-2 R" means
+    ``q = 1e-2 r``).  ``order`` embeds the model in a larger state (as in an
+    IMM); the components the model does not carry get process variance
+    ``unmodelled_q`` (0 keeps them at the model's zero rows; a large value
+    makes the model agnostic about them).
+    """
+    native = MOTION_ORDERS[model]
+    order = native if order is None else order
+    F = axis_transition(model, dt, order)
+    Q = np.diag([q] * native + [unmodelled_q] * (order - native))
+    H = np.zeros((n_measured, order))
+    k = min(n_measured, order)
+    H[np.arange(k), np.arange(k)] = 1.0
+    return F, Q, H, r * np.eye(n_measured)

@@ -1,0 +1,59 @@
+"""Shared fixtures: synthetic frames, the bundled sample, the shared benchmark sequences."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import cv2
+import numpy as np
+import pytest
+
+from vidtrack.types import Box, Frame
+
+REPO = Path(__file__).resolve().parents[1]
+SAMPLE_VIDEO = REPO / "data" / "sample.mp4"
+SAMPLE_GT = REPO / "data" / "sample_groundtruth.txt"
+SEQUENCES = REPO.parent / "shared" / "data" / "sequences"
+
+
+def textured_patch(rng: np.random.Generator, h: int, w: int) -> np.ndarray:
+    """A colourful checker patch with grain, ``(h, w, 3) uint8``."""
+    yy, xx = np.mgrid[0:h, 0:w]
+    palette = np.array([[40, 40, 210], [235, 235, 235], [30, 170, 240]], np.uint8)
+    patch = palette[((xx // 5) + (yy // 5)) % 3].astype(float) + rng.normal(0, 6, (h, w, 3))
+    return np.clip(patch, 0, 255).astype(np.uint8)
+
+
+def synthetic_sequence(n: int = 30, size=(160, 120), box=(20, 40, 24, 28), velocity=(2.5, 0.8),
+                       seed: int = 0) -> tuple[list[Frame], list[Box]]:
+    """A textured target moving at constant velocity over a smooth textured background."""
+    rng = np.random.default_rng(seed)
+    W, H = size
+    coarse = rng.random((H // 20 + 2, W // 20 + 2, 3)).astype(np.float32)
+    bg = cv2.resize(coarse, (W, H), interpolation=cv2.INTER_CUBIC)
+    bg = np.clip(60 + 90 * bg + rng.normal(0, 4, (H, W, 3)), 0, 255).astype(np.uint8)
+    x, y, w, h = box
+    patch = textured_patch(rng, h, w)
+    frames, boxes = [], []
+    for k in range(n):
+        bx, by = x + velocity[0] * k, y + velocity[1] * k
+        img = bg.copy()
+        xi, yi = int(round(bx)), int(round(by))
+        img[yi:yi + h, xi:xi + w] = patch
+        frames.append(Frame(k, img))
+        boxes.append(Box(xi, yi, w, h))
+    return frames, boxes
+
+
+@pytest.fixture(scope="session")
+def moving_target():
+    return synthetic_sequence()
+
+
+@pytest.fixture(scope="session")
+def sample_init_box() -> str:
+    return SAMPLE_GT.read_text().splitlines()[0]
+
+
+def needs_sequences():
+    return pytest.mark.skipif(not SEQUENCES.is_dir(), reason="shared benchmark sequences not present")
