@@ -67,6 +67,43 @@ def sir_step(particles: np.ndarray, weights: np.ndarray, propagate: Propagate, l
     return particles, weights, log_evidence
 
 
+def sir_step_batch(particles: np.ndarray, weights: np.ndarray, propagate: Propagate,
+                   log_likelihood: LogLikelihood | None, rng: np.random.Generator, *,
+                   resample_below: float = 0.5) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """:func:`sir_step` on ``B`` independent particle sets at once.
+
+    ``particles`` ``(B, N, ...)``, ``weights`` ``(B, N)``; ``propagate`` and
+    ``log_likelihood`` act on the whole batch (``log_likelihood`` returns
+    ``(B, N)``).  Each set is normalised and (when its ``N_eff`` is low)
+    resampled on its own with :func:`systematic_resample`.
+
+    Returns
+    -------
+    particles, weights, log_evidence ``(B,)``
+    """
+    particles = propagate(particles, rng)
+    log_evidence = np.zeros(len(weights))
+    if log_likelihood is not None:
+        log_w = np.log(np.maximum(weights, 1e-300)) + log_likelihood(particles)
+        peak = np.max(log_w, axis=1, keepdims=True)
+        finite = np.isfinite(peak[:, 0])
+        shifted = np.exp(log_w - np.where(finite[:, None], peak, 0.0))
+        total = shifted.sum(axis=1, keepdims=True)
+        ok = finite & (total[:, 0] > 0)
+        weights = np.where(ok[:, None], shifted / np.where(ok[:, None], total, 1.0), 1.0 / weights.shape[1])
+        log_evidence = np.where(ok, peak[:, 0] + np.log(np.where(ok, total[:, 0], 1.0)), -np.inf)
+    ess = 1.0 / np.sum(np.square(weights), axis=1)
+    low = np.flatnonzero(ess < resample_below * weights.shape[1])
+    if len(low):
+        particles = particles.copy()
+        weights = weights.copy()
+        for b in low:
+            idx = systematic_resample(weights[b], rng)
+            particles[b] = particles[b][idx]
+            weights[b] = 1.0 / weights.shape[1]
+    return particles, weights, log_evidence
+
+
 def weighted_mean_cov(particles: np.ndarray, weights: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Weighted mean ``(d,)`` and covariance ``(d, d)`` of ``(N, d)`` particles."""
     particles = particles.reshape(len(particles), -1)

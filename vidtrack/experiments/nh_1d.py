@@ -1,0 +1,288 @@
+"""Table 1 of "An Online Learning-based Framework for Tracking" (Chaudhuri, Freund & Hsu, UAI 2010).
+
+Section 5's one-dimensional simulation: the state ``z_t`` lives on the grid
+``G = {-500, ..., 500}``; the measurement at time ``t`` is the whole vector
+``M(x, t) = H(x, z_t) + n_t(x)``, ``x in G``, with ``H`` the square pulse of
+half-width ``W = 50`` around ``z_t`` and ``n_t(x)`` i.i.d. from
+``(1 - rho) N(0, sigma_o^2) + rho N(0, (10 sigma_o)^2)``.  Three trackers
+read the same measurements:
+
+* **NH** -- the SMC NormalHedge tracker (Algorithms 2-3,
+  :func:`vidtrack.filters.normalhedge.nh_tracking_step`) with ``N = 100``
+  actions started uniformly on ``[-500, 500]``, ``alpha = 0.02``,
+  ``Sigma_* = 400``, ``F`` the identity and the clipped loss
+  ``l_o(x) = -sum_{|g - x| <= W} q(M(g, t))``,
+  ``q(y) = min(1 + sigma_o, max(y, -sigma_o))``;
+* **Bayes** -- the exact grid filter (:mod:`vidtrack.filters.grid_bayes`)
+  with a Gaussian random walk ``sigma_d = 2``, the Gaussian likelihood
+  ``M(g, t) ~ N(H(g, x), sigma_o^2)`` with the true ``sigma_o`` and the
+  prior ``z_1 = 0``; estimate = posterior mean;
+* **PF** -- the SIR particle filter (:mod:`vidtrack.filters.particle`) with
+  ``N = 100`` particles and the same model; estimate = weighted mean.
+
+Per run the RMSE over the ``T = 200`` steps is computed; the table reports
+its mean and standard deviation over the runs.
+
+Assumptions (the paper does not say): each run draws its own true path,
+piecewise with segments of 20-60 steps that are either stationary or move at
+a constant velocity drawn uniformly from ``[-1, 1]`` (``z_1 = 0``); the three
+trackers see the same noise in a run; the Gaussian log-likelihood of a whole
+measurement vector is ``sum_{|g - x| <= W} (2 M(g) - 1) / (2 sigma_o^2)`` up
+to a constant; NH's continuous action states use the grid points inside
+``[x - W, x + W]``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import time
+
+import numpy as np
+from scipy import sparse
+
+from ..errors import UsageError
+from ..filters.grid_bayes import gaussian_transition, grid_predict, grid_update_log
+from ..filters.normalhedge import nh_tracking_step
+from ..filters.particle import sir_step_batch
+
+DESCRIPTION = "NormalHedge vs Bayes vs PF on the 1-D pulse simulation (Chaudhuri et al. 2010, Table 1)"
+
+HALF_GRID = 500
+WIDTH = 50
+GRID = np.arange(-HALF_GRID, HALF_GRID + 1, dtype=float)
+DEFAULT_RHOS = (0.0, 0.01, 0.05, 0.1, 0.15, 0.2, 0.4)
+DEFAULT_SIGMAS = (1.0, 8.0)
+FILTERS = ("NH", "Bayes", "PF")
+
+
+# ------------------------------------------------------------------- the world
+
+
+def true_paths(n_runs: int, T: int, rng: np.random.Generator) -> np.ndarray:
+    """``(n_runs, T)`` true states: piecewise stationary / constant velocity ``|v| <= 1``, ``z_1 = 0``."""
+    paths = np.zeros((n_runs, T))
+    for r in range(n_runs):
+        velocity = np.zeros(T)
+        t = 1
+        while t < T:
+            length = int(rng.integers(20, 61))
+            v = 0.0 if rng.random() < 0.5 else float(rng.uniform(-1.0, 1.0))
+            velocity[t:t + length] = v
+            t += length
+        paths[r] = np.cumsum(velocity)
+    return np.clip(paths, -HALF_GRID + WIDTH, HALF_GRID - WIDTH)
+
+
+def measurements(z: np.ndarray, sigma_o: float, rho: float, rng: np.random.Generator) -> np.ndarray:
+    """``M(x, t)`` for every grid point, shape ``(n_runs, |G|)``: pulse plus mixture noise."""
+    pulse = (np.abs(GRID[None, :] - z[:, None]) <= WIDTH).astype(float)      # H(x, z_t)
+    outlier = rng.random(pulse.shape) < rho
+    scale = np.where(outlier, 10.0 * sigma_o, sigma_o)
+    return pulse + scale * rng.standard_normal(pulse.shape)
+
+
+def clipped(m: np.ndarray, sigma_o: float) -> np.ndarray:
+    """``q(y) = min(1 + sigma_o, max(y, -sigma_o))``."""
+    return np.clip(m, -sigma_o, 1.0 + sigma_o)
+
+
+def window_sums(values: np.ndarray, states: np.ndarray) -> np.ndarray:
+    """``sum_{g in G, |g - x| <= W} values[g]`` for every state ``x``.
+
+    values : (R, |G|) per-grid-point values; states : (R, K) real positions.
+    Uses prefix sums, so the cost does not depend on ``W``.
+    """
+    prefix = np.concatenate([np.zeros((values.shape[0], 1)), np.cumsum(values, axis=1)], axis=1)
+    lo = np.clip(np.ceil(states - WIDTH), -HALF_GRID, HALF_GRID + 1).astype(int) + HALF_GRID
+    hi = np.clip(np.floor(states + WIDTH), -HALF_GRID - 1, HALF_GRID).astype(int) + HALF_GRID + 1
+    hi = np.maximum(hi, lo)
+    return np.take_along_axis(prefix, hi, axis=1) - np.take_along_axis(prefix, lo, axis=1)
+
+
+def gaussian_loglik_weights(m: np.ndarray, sigma_o: float) -> np.ndarray:
+    """Per-point terms of the Gaussian log-likelihood: ``log p(M | x) = sum_{|g-x|<=W} (2M(g) - 1) / 2 sigma_o^2 + const``."""
+    return (2.0 * m - 1.0) / (2.0 * sigma_o ** 2)
+
+
+def banded_random_walk(sigma_d: float, cutoff: float = 1e-12) -> sparse.csr_matrix:
+    """The grid filter's Gaussian random-walk transition as a sparse banded matrix."""
+    T = gaussian_transition(GRID, sigma_d)
+    T[T < cutoff] = 0.0
+    T /= T.sum(axis=0, keepdims=True)
+    return sparse.csr_matrix(T)
+
+
+# -------------------------------------------------------------- one condition
+
+
+def simulate(sigma_o: float, rho: float, n_runs: int, seed, *, T: int = 200, n_actions: int = 100,
+             alpha: float = 0.02, sigma_star2: float = 400.0, sigma_d: float = 2.0, n_particles: int = 100,
+             nh_init: str = "prior", pf_likelihood: str = "log", keep_paths: int = 0) -> dict:
+    """Run all three trackers on ``n_runs`` simulations of one ``(sigma_o, rho)``.
+
+    Returns ``{"rmse": {name: (n_runs,)}, "paths": {...}}`` where ``paths``
+    holds the true and estimated paths of the first ``keep_paths`` runs.
+    """
+    world_rng = np.random.default_rng([seed, 0])
+    nh_rng = np.random.default_rng([seed, 1])
+    pf_rng = np.random.default_rng([seed, 2])
+    z = true_paths(n_runs, T, world_rng)
+    est = {name: np.zeros((n_runs, T)) for name in FILTERS}
+
+    # NH: N actions, R = 0, w = 1/N (Algorithm 2); drawn uniformly on the
+    # state space ("uniform") or from N(z_1, Sigma_*) ("prior": the knowledge
+    # of z_1 the Bayes filter and the PF get).
+    sigma_star = float(np.sqrt(sigma_star2))
+    if nh_init == "uniform":
+        nh_states = nh_rng.uniform(-HALF_GRID, HALF_GRID, size=(n_runs, n_actions, 1))
+    elif nh_init == "prior":
+        nh_states = z[:, :1, None] + sigma_star * nh_rng.standard_normal((n_runs, n_actions, 1))
+    else:
+        raise UsageError(f"unknown NH initialisation {nh_init!r}; valid: prior, uniform")
+    nh_regrets = np.zeros((n_runs, n_actions))
+    nh_weights = np.full((n_runs, n_actions), 1.0 / n_actions)
+    # Bayes: prior all mass on z_1 = 0.
+    transition = banded_random_walk(sigma_d)
+    posterior = np.zeros((len(GRID), n_runs))
+    posterior[HALF_GRID] = 1.0
+    # PF: every particle at z_1 = 0.
+    particles = np.zeros((n_runs, n_particles))
+    pf_weights = np.full((n_runs, n_particles), 1.0 / n_particles)
+
+    def propagate(x, rng):  # x_k = x_{k-1} + N(0, sigma_d^2)
+        return x + sigma_d * rng.standard_normal(x.shape)
+
+    for t in range(T):
+        m = measurements(z[:, t], sigma_o, rho, world_rng)
+        q = clipped(m, sigma_o)
+        ll_terms = gaussian_loglik_weights(m, sigma_o)
+
+        out = nh_tracking_step(nh_states, nh_regrets, nh_weights, lambda s: -window_sums(q, s[..., 0]),
+                               nh_rng, alpha=alpha, sigma_star=sigma_star)
+        nh_states, nh_regrets, nh_weights = out["next_states"], out["regrets"], out["weights"]
+        est["NH"][:, t] = out["estimate"][:, 0]
+
+        if t > 0:  # z_1 is known exactly: the first estimate is the prior's
+            posterior = np.asarray(grid_predict(posterior, transition))
+            loglik = window_sums(ll_terms, np.broadcast_to(GRID, (n_runs, len(GRID)))).T
+            for r in range(n_runs):
+                posterior[:, r] = grid_update_log(posterior[:, r], loglik[:, r])
+            if pf_likelihood == "log":
+                pf_loglik = lambda x: window_sums(ll_terms, x)  # noqa: E731
+            else:  # "linear": exp(-sum (M - H)^2 / 2 sigma^2) in float64, as naive code does; it underflows
+                offset = np.sum(m * m, axis=1, keepdims=True) / (2.0 * sigma_o ** 2)
+                def pf_loglik(x):
+                    with np.errstate(divide="ignore", under="ignore"):
+                        return np.log(np.exp(window_sums(ll_terms, x) - offset))
+            particles, pf_weights, _ = sir_step_batch(particles, pf_weights, propagate, pf_loglik, pf_rng)
+        est["Bayes"][:, t] = GRID @ posterior
+        est["PF"][:, t] = np.sum(particles * pf_weights, axis=1)
+
+    rmse = {name: np.sqrt(np.mean((est[name] - z) ** 2, axis=1)) for name in FILTERS}
+    paths = {"truth": z[:keep_paths].tolist(), **{name: est[name][:keep_paths].tolist() for name in FILTERS}}
+    return {"rmse": rmse, "paths": paths}
+
+
+# ------------------------------------------------------------------ protocol
+
+
+def _float_list(text: str) -> list[float]:
+    try:
+        values = [float(v) for v in text.split(",") if v.strip()]
+    except ValueError:
+        raise UsageError(f"expected comma-separated numbers, got {text!r}") from None
+    if not values:
+        raise UsageError("expected at least one number")
+    return values
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("--rhos", default=",".join(str(r) for r in DEFAULT_RHOS),
+                        help="outlier fractions rho (default 0,0.01,0.05,0.1,0.15,0.2,0.4)")
+    parser.add_argument("--sigmas", default="1,8", help="noise levels sigma_o (default 1,8)")
+    parser.add_argument("--steps", type=int, default=200, help="time steps T (default 200)")
+    parser.add_argument("--nh-init", choices=("prior", "uniform"), default="prior",
+                        help="NH's initial actions: N(z_1, Sigma_*) (default) or uniform on [-500, 500]")
+    parser.add_argument("--pf-likelihood", choices=("log", "linear"), default="log",
+                        help="PF weights from log-likelihoods (default) or from the float64 likelihood "
+                             "product, which underflows to 0 with outliers (then weights stay uniform)")
+    parser.add_argument("--plot", metavar="FILE", help="plot true/NH/Bayes paths of 5 runs (like Figs 2-3)")
+    parser.add_argument("--plot-rho", type=float, default=0.2, help="rho of the plotted runs (default 0.2)")
+
+
+def run(args, progress) -> dict:
+    n_runs = args.runs or 100
+    rhos = _float_list(args.rhos)
+    sigmas = _float_list(args.sigmas)
+    if any(not 0.0 <= r <= 1.0 for r in rhos):
+        raise UsageError("--rhos must lie in [0, 1]")
+    if any(s <= 0 for s in sigmas):
+        raise UsageError("--sigmas must be positive")
+    if args.steps < 2:
+        raise UsageError("--steps must be at least 2")
+    plot_path = getattr(args, "plot", None)
+    plot_fig = None
+    if plot_path:
+        from ..sinks.base import open_text_output  # fail early on an unwritable path
+        open_text_output(plot_path).close()
+    conditions = [(s, r) for s in sigmas for r in rhos]
+    rows, plotted = [], {}
+    start = time.perf_counter()
+    for index, (sigma_o, rho) in enumerate(progress(conditions, total=len(conditions), desc="nh-1d")):
+        keep = 5 if plot_path and abs(rho - args.plot_rho) < 1e-12 else 0
+        result = simulate(sigma_o, rho, n_runs, [args.seed, index], T=args.steps, keep_paths=keep,
+                          nh_init=args.nh_init, pf_likelihood=args.pf_likelihood)
+        row = {"sigma_o": sigma_o, "rho": rho}
+        for name in FILTERS:
+            values = result["rmse"][name]
+            row[name] = {"mean": float(np.mean(values)), "sd": float(np.std(values, ddof=1)) if n_runs > 1 else 0.0}
+        rows.append(row)
+        if keep:
+            plotted[sigma_o] = result["paths"]
+    out = {"experiment": "nh-1d", "runs": n_runs, "seed": args.seed, "steps": args.steps,
+           "nh_init": args.nh_init, "pf_likelihood": args.pf_likelihood,
+           "seconds": round(time.perf_counter() - start, 1), "rows": rows}
+    if plot_path:
+        plot_fig = _plot(plotted, args.plot_rho, plot_path)
+        out["plot"] = plot_fig
+    return out
+
+
+def _plot(plotted: dict, rho: float, path: str) -> str:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    if not plotted:
+        raise UsageError(f"--plot-rho {rho} is not one of --rhos")
+    fig, axes = plt.subplots(len(plotted), 5, figsize=(16, 3.2 * len(plotted)), squeeze=False)
+    for row, (sigma_o, paths) in enumerate(sorted(plotted.items())):
+        for k in range(min(5, len(paths["truth"]))):
+            ax = axes[row, k]
+            ax.plot(paths["truth"][k], "k--", label="true")
+            ax.plot(paths["NH"][k], "b", label="NH")
+            ax.plot(paths["Bayes"][k], "r", label="Bayes")
+            ax.set_title(f"sigma_o={sigma_o:g}, rho={rho:g}, run {k + 1}", fontsize=9)
+            ax.set_ylim(-250, 250)
+    axes[0, 0].legend(fontsize=8)
+    fig.tight_layout()
+    fig.savefig(path, dpi=90)
+    plt.close(fig)
+    return path
+
+
+def format_table(result: dict) -> str:
+    lines = [f"Table 1 (Chaudhuri et al. 2010): RMSE over T={result['steps']} steps, "
+             f"mean ± sd over {result['runs']} runs (seed {result['seed']}, NH init {result['nh_init']}, "
+             f"PF likelihood {result['pf_likelihood']}, {result['seconds']} s)"]
+    for sigma_o in sorted({row["sigma_o"] for row in result["rows"]}):
+        label = "Low" if sigma_o <= 1 else "High"
+        lines.append(f"{label} Noise (sigma_o = {sigma_o:g})")
+        lines.append(f"{'rho':>6}  {'NH':>16}  {'Bayes':>16}  {'PF':>16}")
+        for row in result["rows"]:
+            if row["sigma_o"] != sigma_o:
+                continue
+            cells = [f"{row[n]['mean']:7.2f} ± {row[n]['sd']:6.2f}" for n in FILTERS]
+            lines.append(f"{row['rho']:6.2f}  " + "  ".join(f"{c:>16}" for c in cells))
+    return "\n".join(lines)
