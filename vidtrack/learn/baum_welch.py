@@ -1,0 +1,244 @@
+"""Learning Channel-Based Tracking models: covariance estimates and Baum-Welch on channel vectors.
+
+From "Learning Object Tracking in Image Sequences" / "Channel-Based Tracking"
+(Felsberg & Larsson).  Sequences are given as per-frame channel vectors
+``c_k`` (``(T, C)`` arrays).  A frame's vector may encode one exactly known
+state or a *set* of unassociated detections (the sum of their encodings:
+clutter, drop-outs and displacements included) -- the correspondence-free
+learning of section 3.4 uses the same code on such sets.
+
+* :func:`covariance_transition` -- eq. 11 for any first-order channel state:
+  ``F = sum_k w_k w_{k-1}' / (1 sum_k w_{k-1}')`` (columns normalised by the
+  marginal of the previous state).
+* :func:`embedded_covariance` -- the same estimate for the order-``n`` Markov
+  model embedded in a first-order one (state = the last ``n`` positions), as
+  the conditional tensor ``G[x_k, x_{k-1}, ..., x_{k-n}]`` of
+  :mod:`vidtrack.filters.channels`.
+* :func:`measurement_matrix` -- the measurement model as a matrix from state
+  channels to measurement channels, ``H[m, i]`` = channel ``m`` of
+  ``p(z | x_i)``; the likelihood vector is ``h(z) = H' c(z)``.
+* :func:`baum_welch` -- refinement of ``(G, H)`` from measurements alone:
+  ``alpha_k = w_{k|k}`` (eq. 10), ``beta_k = F' (h(z_{k+1}) . beta_{k+1})``
+  (eq. 17), ``F <- sum_k beta_{k+1} . h(z_{k+1}) . (F alpha_k) / N`` (eq. 18),
+  ``h(z) <- sum_k z_k (alpha_k . beta_k) / N`` (eq. 19), with every product of
+  two channel vectors optionally replaced by the square-root product.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Sequence
+
+import numpy as np
+
+from ..filters.channels import channel_product, embedded_predict, normalized
+
+_TINY = 1e-300
+_LETTERS = "abcdefghij"
+
+
+def covariance_transition(W_next: np.ndarray, W_prev: np.ndarray, *, eps: float = 1e-12) -> np.ndarray:
+    """Eq. 11: ``F = sum_k w_k w_{k-1}' / (1 sum_k w_{k-1}')`` for ``(K, S)`` state channel vectors."""
+    num = np.asarray(W_next, float).T @ np.asarray(W_prev, float)
+    den = np.asarray(W_prev, float).sum(axis=0)[None, :]
+    return num / np.maximum(den, eps)
+
+
+def _history(seq: np.ndarray, order: int, k: int) -> np.ndarray:
+    """Outer product ``c_k o c_{k-1} o ... o c_{k-order+1}``."""
+    W = seq[k]
+    for j in range(1, order):
+        W = np.multiply.outer(W, seq[k - j])
+    return W
+
+
+def embedded_counts(seqs: Sequence[np.ndarray], order: int, targets: Sequence[np.ndarray] | None = None) -> np.ndarray:
+    """Numerator of eq. 11 in the order-``order`` embedding: ``sum_k t_k o c_{k-1} o ... o c_{k-order}``.
+
+    ``targets`` (default ``seqs``) supplies the new-position vectors ``t_k``;
+    give the vectors of a detrended variable (Carlin's ``x_k - 8 cos(1.2 k)``)
+    to learn only the stationary part of the model.
+    """
+    targets = seqs if targets is None else targets
+    C = np.asarray(seqs[0]).shape[1]
+    counts = np.zeros((np.asarray(targets[0]).shape[1],) + (C,) * order)
+    letters = _LETTERS[: order + 1]
+    spec = ",".join(f"m{c}" for c in letters) + "->" + letters
+    for seq, tgt in zip(seqs, targets):
+        seq = np.asarray(seq, float)
+        tgt = np.asarray(tgt, float)
+        T = len(seq)
+        if T <= order:
+            continue
+        parts = [tgt[order:T]] + [seq[order - j: T - j] for j in range(1, order + 1)]
+        counts += np.einsum(spec, *parts)
+    return counts
+
+
+def embedded_covariance(seqs: Sequence[np.ndarray], order: int, targets: Sequence[np.ndarray] | None = None,
+                        *, floor: float = 1e-6) -> np.ndarray:
+    """Eq. 11 in the embedded model: ``G = counts / marginal of the previous n positions``.
+
+    Histories never seen get a uniform column (``floor`` keeps every entry
+    positive so a prediction never vanishes).
+    """
+    counts = embedded_counts(seqs, order, targets) + floor
+    return counts / counts.sum(axis=0, keepdims=True)
+
+
+def measurement_matrix(z_channels: np.ndarray, x_channels: np.ndarray, *, floor: float = 1e-6) -> np.ndarray:
+    """``H[m, i] = sum_k z_k[m] x_k[i] / sum_k x_k[i]``: channels of ``p(z | x = channel i)``."""
+    num = np.asarray(z_channels, float).T @ np.asarray(x_channels, float) + floor
+    return num / num.sum(axis=0, keepdims=True)
+
+
+def likelihoods(H: np.ndarray, z_channels: np.ndarray, floor: float = 0.0) -> np.ndarray:
+    """``h(z_k) = H' c(z_k)`` for every frame, ``(T, C)``; ``floor`` (fraction of each row's max) models drop-outs."""
+    h = np.asarray(z_channels, float) @ H
+    if floor > 0:
+        h = h + floor * np.maximum(h.max(axis=1, keepdims=True), _TINY)
+    return h
+
+
+@dataclass
+class BaumWelchResult:
+    """Refined ``G``, ``H`` and the per-iteration log-likelihood (``sum_k log`` of the update normalisers)."""
+
+    G: np.ndarray
+    H: np.ndarray
+    log_likelihood: list[float] = field(default_factory=list)
+    change: list[float] = field(default_factory=list)
+
+
+def _broadcast_current(h: np.ndarray, order: int) -> np.ndarray:
+    return h.reshape((-1,) + (1,) * (order - 1))
+
+
+def forward(G: np.ndarray, h: np.ndarray, W0: np.ndarray, product: str = "plain") -> tuple[list[np.ndarray], float]:
+    """Alpha recursion: ``alpha_k = w_{k|k}`` (eq. 10) from the prior ``W0`` at frame ``order - 1``.
+
+    ``h`` ``(T, C)`` likelihoods of the current position.  Returns the alphas
+    for frames ``order - 1 .. T - 1`` and ``sum log`` of the normalisers.
+    """
+    order = G.ndim - 1
+    alphas = [normalized(W0)]
+    loglik = 0.0
+    for k in range(order, len(h)):
+        prior = embedded_predict(alphas[-1], G)
+        post = channel_product(_broadcast_current(h[k], order), prior, product)
+        s = float(post.sum())
+        loglik += np.log(max(s, _TINY))
+        alphas.append(post / s if s > 0 else prior)
+    return alphas, loglik
+
+
+def backward(G: np.ndarray, h: np.ndarray, product: str = "plain") -> list[np.ndarray]:
+    """Beta recursion (eq. 17): ``beta_k = F' (h(z_{k+1}) . beta_{k+1})``, normalised, for frames ``order-1 .. T-1``."""
+    order = G.ndim - 1
+    letters = _LETTERS[: order + 1]
+    shape = (G.shape[0],) * order
+    betas = [np.full(shape, 1.0 / np.prod(shape))]
+    for k in range(len(h) - 2, order - 2, -1):
+        e = channel_product(_broadcast_current(h[k + 1], order), betas[-1], product)  # over x_{k+1}, ..., x_{k-n+2}
+        # beta_k[x_k..x_{k-n+1}] = sum_{x_{k+1}} G[x_{k+1}, x_k, .., x_{k-n+1}] e[x_{k+1}, x_k, .., x_{k-n+2}]
+        b = np.einsum(f"{letters},{letters[:-1]}->{letters[1:]}", G, e)
+        betas.append(normalized(b))
+    return betas[::-1]
+
+
+def baum_welch(z_channels: Sequence[np.ndarray], G: np.ndarray, H: np.ndarray, *, iterations: int = 4,
+               product: str = "plain", h_floor: float = 0.0, learn_H: bool = True, W0: Sequence[np.ndarray] | None = None,
+               tol: float = 1e-4, smoothing: float = 1e-6) -> BaumWelchResult:
+    """Refine an embedded model ``(G, H)`` from measurement channel sequences (eqs. 17-19).
+
+    Parameters
+    ----------
+    z_channels
+        Per sequence, ``(T, C_z)`` measurement channel vectors (a set of
+        unassociated detections is the sum of their encodings).
+    G
+        Initial conditional ``G[x_k, x_{k-1}, ..., x_{k-n}]`` (the covariance estimate).
+    H
+        Initial measurement matrix ``(C_z, C)``.
+    iterations
+        Maximum number of EM iterations (the paper converged after four).
+    product
+        ``"plain"`` or ``"sqrt"`` (square-root products for channel vectors).
+    h_floor
+        Likelihood floor (fraction of each frame's maximum) for drop-outs.
+    learn_H
+        Also update ``H`` (eq. 19).
+    W0
+        Per sequence, the prior tensor at frame ``n - 1``; by default the
+        empirical one, the outer product of the first ``n`` frames' vectors
+        mapped to state channels.
+    tol
+        Stop when the largest change of ``G`` falls below this.
+
+    Returns
+    -------
+    BaumWelchResult
+    """
+    G = np.asarray(G, float).copy()
+    H = np.asarray(H, float).copy()
+    order = G.ndim - 1
+    letters = _LETTERS[: order + 1]
+    result = BaumWelchResult(G, H)
+    for _ in range(iterations):
+        xi_sum = np.zeros_like(G)
+        gz_num = np.zeros_like(H)
+        loglik = 0.0
+        for s, z in enumerate(z_channels):
+            z = np.asarray(z, float)
+            if len(z) <= order:
+                continue
+            h = likelihoods(H, z, h_floor)
+            if W0 is not None:
+                w0 = W0[s]
+            else:
+                state = normalized_rows(h)  # empirical prior from the first frames' likelihoods
+                w0 = state[order - 1]
+                for j in range(1, order):
+                    w0 = np.multiply.outer(w0, state[order - 1 - j])
+            alphas, ll = forward(G, h, w0, product)
+            betas = backward(G, h, product)
+            loglik += ll
+            for i in range(len(alphas) - 1):
+                k = i + order - 1  # frame of alphas[i]
+                e = channel_product(_broadcast_current(h[k + 1], order), betas[i + 1], product)
+                # xi[x_{k+1}, x_k, ..., x_{k-n+1}] ∝ G . e[x_{k+1}, .., x_{k-n+2}] . alpha_k[x_k, .., x_{k-n+1}] (eq. 18)
+                e_ext = e.reshape(e.shape + (1,))
+                a_ext = alphas[i].reshape((1,) + alphas[i].shape)
+                xi = G * channel_product(np.broadcast_to(e_ext, G.shape), np.broadcast_to(a_ext, G.shape), product)
+                xi_sum += normalized(xi)
+            if learn_H:
+                for i, (a, b) in enumerate(zip(alphas, betas)):
+                    k = i + order - 1
+                    gamma = normalized(channel_product(a, b, product))  # alpha . beta
+                    g = gamma.reshape(gamma.shape[0], -1).sum(axis=1)  # marginal of the current position
+                    gz_num += np.outer(z[k], g)  # eq. 19: h(z) <- sum_k z_k (alpha_k . beta_k)
+        xi_sum += smoothing
+        G_new = xi_sum / xi_sum.sum(axis=0, keepdims=True)
+        change = float(np.max(np.abs(G_new - G)))
+        G = G_new
+        if learn_H:
+            gz_num += smoothing
+            H = gz_num / gz_num.sum(axis=0, keepdims=True)
+        result.G, result.H = G, H
+        result.log_likelihood.append(float(loglik))
+        result.change.append(change)
+        if change < tol:
+            break
+    return result
+
+
+def normalized_rows(a: np.ndarray) -> np.ndarray:
+    """Each row divided by its sum (rows summing to zero become uniform)."""
+    a = np.asarray(a, float)
+    s = a.sum(axis=1, keepdims=True)
+    return np.where(s > 0, a / np.where(s > 0, s, 1.0), 1.0 / a.shape[1])
+
+
+def embed_history(c_seq: np.ndarray, order: int, k: int) -> np.ndarray:
+    """The order-``order`` state tensor of frame ``k`` from per-frame vectors: ``c_k o c_{k-1} o ...``."""
+    return _history(np.asarray(c_seq, float), order, k)
