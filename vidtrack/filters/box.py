@@ -45,18 +45,19 @@ class CentreFilter:
     lost_below
         Below this measurement quality the status is ``lost``.
     reject_below
-        Below this quality the measurement is not used (predict only).
+        Below this quality the measurement is not used (predict only);
+        defaults to ``lost_below`` (a measurement that says "lost" is not trusted).
     coast_damping
         Factor applied to the derivative states per frame without a measurement.
     """
 
     def __init__(self, make_core: Callable[[Box], object], *, order: int, initial_sigma: float = 0.1,
-                 lost_below: float = 0.5, reject_below: float = 0.25, coast_damping: float = 0.8) -> None:
+                 lost_below: float = 0.4, reject_below: float | None = None, coast_damping: float = 0.9) -> None:
         self.make_core = make_core
         self.order = order
         self.initial_sigma = initial_sigma
         self.lost_below = lost_below
-        self.reject_below = reject_below
+        self.reject_below = lost_below if reject_below is None else reject_below
         self.coast_damping = coast_damping
 
     def initialize(self, box: Box, frame: Frame | None = None) -> None:

@@ -141,7 +141,7 @@ class MeanShiftMeasurer:
     background_weighting: bool = True
     scale_step: float = 0.0
     scale_gamma: float = 0.1
-    position_sigma: float = 0.08
+    position_sigma: float = 0.04
 
     def initialize(self, frame: Frame, box: Box) -> None:
         self.gray_ = is_gray(frame.image)

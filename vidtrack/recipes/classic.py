@@ -18,6 +18,9 @@ from ..measure.meanshift import MeanShiftMeasurer
 from ..tracker import Recipe, Tracker
 from ..types import Box
 
+#: Bhattacharyya coefficient below which a mean-shift measurement is not used and the target is lost.
+LOST_BELOW = 0.4
+
 #: Per-frame random step of the highest derivative, as a fraction of the box size.
 Q_SCALE = {"dr": 0.08, "cv": 0.02, "ca": 0.006}
 
@@ -41,19 +44,19 @@ def imm_core(box: Box, models=("dr", "cv", "ca"), stay: float = 0.95) -> IMMEsti
 
 
 def build_ms(seed=None, **options) -> Tracker:
-    return Tracker(MeanShiftMeasurer(**options), PassThroughFilter(lost_below=0.5))
+    return Tracker(MeanShiftMeasurer(**options), PassThroughFilter(lost_below=LOST_BELOW))
 
 
 def build_kalman(model: str):
     def build(seed=None, **options) -> Tracker:
         order = MOTION_ORDERS[model]
         return Tracker(MeanShiftMeasurer(**options),
-                       CentreFilter(lambda box: kalman_core(model, box), order=order))
+                       CentreFilter(lambda box: kalman_core(model, box), order=order, lost_below=LOST_BELOW))
     return build
 
 
 def build_imm(seed=None, **options) -> Tracker:
-    return Tracker(MeanShiftMeasurer(**options), CentreFilter(imm_core, order=3))
+    return Tracker(MeanShiftMeasurer(**options), CentreFilter(imm_core, order=3, lost_below=LOST_BELOW))
 
 
 RECIPES = {
