@@ -401,6 +401,120 @@ class ChannelBayesFilter:
         return self.W_.reshape(self.W_.shape[0], -1).sum(axis=1)
 
 
+# --------------------------------------------------------------------- 2-D from per-axis models
+
+
+def product_likelihood(points, bases: Sequence[ChannelBasis], *, weights=None, clutter: float = 0.0,
+                       H: Sequence[np.ndarray] | None = None) -> np.ndarray:
+    """Likelihood ``h`` over a 2-D current-position channel grid from unassociated detections.
+
+    ``h = clutter + sum_d s_d h_x(x_d) o h_y(y_d)`` where ``h_axis(z) = H_axis' c(z)``
+    (identity ``H``: the detection's own encoding).  Detections outside the
+    grid fade out instead of piling up on its border.
+    """
+    points = np.asarray(points, dtype=float).reshape(-1, 2)
+    h = np.full(tuple(b.n for b in bases), float(clutter))
+    if len(points):
+        s = np.ones(len(points)) if weights is None else np.asarray(weights, float)
+        e = [encode_unclipped(points[:, d], b) for d, b in enumerate(bases)]
+        if H is not None:
+            e = [e_d @ H_d for e_d, H_d in zip(e, H)]
+        h = h + np.einsum("m,mi,mj->ij", s, e[0], e[1])
+    return h
+
+
+def mean_field_update(Ws: Sequence[np.ndarray], h: np.ndarray, product: str = "plain") -> tuple[list[np.ndarray], np.ndarray, float]:
+    """Eq. 10 on the 2-D current position with per-axis order-``n`` history tensors.
+
+    The prior of the current position is the product of the axes' marginals;
+    the update with the 2-D likelihood ``h`` is exact, and the result is
+    re-factorised: each axis' history tensor is scaled by (new / old) marginal
+    of its current position.  Returns the new tensors, the 2-D posterior
+    (which keeps the cross-axis association of the detections, for decoding)
+    and the evidence.
+    """
+    marg = [W.reshape(W.shape[0], -1).sum(axis=1) for W in Ws]
+    joint = np.multiply.outer(marg[0], marg[1])
+    post, evidence = cbt_update(joint, h, product)
+    new = [post.sum(axis=1), post.sum(axis=0)]
+    out = []
+    for W, m, m_new in zip(Ws, marg, new):
+        ratio = m_new / np.maximum(m, _TINY)
+        out.append(normalized(W * ratio.reshape((-1,) + (1,) * (W.ndim - 1))))
+    return out, post, evidence
+
+
+class PlanarCBT:
+    """CBT of a 2-D position with per-axis embedded models on fixed (absolute) channel grids.
+
+    Parameters
+    ----------
+    bases
+        ``(basis_x, basis_y)``.
+    G
+        Per-axis conditional tensors ``G[x_k, x_{k-1}, ..., x_{k-n}]``.
+    H
+        Per-axis measurement matrices ``(C, C)`` (None: identity).
+    clutter
+        Likelihood floor (drop-outs and clutter).
+    product
+        ``"plain"`` or ``"sqrt"``.
+    """
+
+    def __init__(self, bases, G, H=None, *, clutter: float = 0.01, product: str = "plain") -> None:
+        self.bases = tuple(bases)
+        self.G = [np.asarray(g, float) for g in G]
+        self.H = None if H is None else [np.asarray(h, float) for h in H]
+        self.clutter = clutter
+        self.product = product
+
+    @property
+    def order(self) -> int:
+        return self.G[0].ndim - 1
+
+    def initialize_at(self, point) -> None:
+        """Prior concentrated at ``point`` over the whole history."""
+        self.W_ = []
+        for d, b in enumerate(self.bases):
+            c = encode(point[d], b)
+            W = c
+            for _ in range(self.order - 1):
+                W = np.multiply.outer(W, c)
+            self.W_.append(W)
+        self.post_ = np.multiply.outer(encode(point[0], self.bases[0]), encode(point[1], self.bases[1]))
+
+    def initialize_empirical(self, points, weights=None) -> None:
+        """First-frame empirical prior: every detection of the first frame, over the whole history."""
+        self.W_ = []
+        for d, b in enumerate(self.bases):
+            c = encode_samples(np.asarray(points)[:, d], b, weights)
+            W = c
+            for _ in range(self.order - 1):
+                W = np.multiply.outer(W, c)
+            self.W_.append(W)
+        self.post_ = encode_nd(points, self.bases, None if weights is None else normalized(np.asarray(weights, float)))
+
+    def predict(self) -> None:
+        self.W_ = [embedded_predict(W, G) for W, G in zip(self.W_, self.G)]
+        m = [W.reshape(W.shape[0], -1).sum(axis=1) for W in self.W_]
+        self.post_ = np.multiply.outer(m[0], m[1])
+
+    def update(self, points, weights=None) -> float:
+        h = product_likelihood(points, self.bases, weights=weights, clutter=self.clutter, H=self.H)
+        self.W_, self.post_, evidence = mean_field_update(self.W_, h, self.product)
+        return evidence
+
+    def decode(self) -> tuple[np.ndarray, float]:
+        """The strongest mode of the current position (frame units) and its mass."""
+        t, mass = decode_nd(self.post_)
+        return np.array([b.from_channel(v) for b, v in zip(self.bases, t)]), mass
+
+    def modes(self, threshold: float = 0.1) -> list[tuple[np.ndarray, float]]:
+        """Every mode holding at least ``threshold`` of the mass (multiple objects)."""
+        return [(np.array([b.from_channel(v) for b, v in zip(self.bases, t)]), m)
+                for t, m in decode_nd_modes(self.post_, threshold)]
+
+
 # --------------------------------------------------------------------- displacement models (video)
 
 

@@ -31,7 +31,7 @@ from typing import Sequence
 
 import numpy as np
 
-from ..filters.channels import channel_product, embedded_predict, normalized
+from ..filters.channels import channel_product, embedded_predict, encode, normalized
 
 _TINY = 1e-300
 _LETTERS = "abcdefghij"
@@ -242,3 +242,48 @@ def normalized_rows(a: np.ndarray) -> np.ndarray:
 def embed_history(c_seq: np.ndarray, order: int, k: int) -> np.ndarray:
     """The order-``order`` state tensor of frame ``k`` from per-frame vectors: ``c_k o c_{k-1} o ...``."""
     return _history(np.asarray(c_seq, float), order, k)
+
+
+def chain_counts(point_sets: Sequence[np.ndarray], bases, order: int, gate: float,
+                 weights: Sequence[np.ndarray] | None = None) -> list[np.ndarray]:
+    """Correspondence-free numerators of eq. 11 from sets of unassociated N-D detections, per axis.
+
+    Every chain of detections ``(a_k, a_{k-1}, ..., a_{k-order})`` taken from
+    consecutive frames whose consecutive links are shorter than ``gate``
+    (Euclidean, all axes) adds ``c(a_k) o c(a_{k-1}) o ...`` to each axis'
+    counts (weighted by the product of the detections' weights, and divided
+    by the number of chains of the frame so a cluttered frame does not count
+    more).  No association is given: true chains, chains through clutter and
+    chains switching objects all count; the gate only encodes that an object
+    moves less than ``gate`` per frame, which keeps the number of chains and
+    the far cross-object background small.
+    """
+    counts = [np.zeros((b.n,) * (order + 1)) for b in bases]
+    letters = _LETTERS[: order + 1]
+    spec = ",".join(f"m{c}" for c in letters) + "->" + letters
+    sets = [np.asarray(p, float).reshape(-1, len(bases)) for p in point_sets]
+    wts = [np.ones(len(p)) if weights is None else np.asarray(w, float) for p, w in zip(sets, weights or sets)]
+    enc = [[encode(p[:, d], b) for d, b in enumerate(bases)] for p in sets]
+    for k in range(order, len(sets)):
+        # chains as index tuples (i_k, i_{k-1}, ...), grown backwards through gated links
+        chains = [(i,) for i in range(len(sets[k]))]
+        for j in range(1, order + 1):
+            prev = sets[k - j]
+            grown = []
+            for ch in chains:
+                if len(prev) == 0:
+                    continue
+                d = np.linalg.norm(prev - sets[k - j + 1][ch[-1]], axis=1)
+                grown.extend(ch + (int(i),) for i in np.flatnonzero(d < gate))
+            chains = grown
+        if not chains:
+            continue
+        idx = np.array(chains)
+        w = np.ones(len(idx))
+        for j in range(order + 1):
+            w = w * wts[k - j][idx[:, j]]
+        w = w / len(idx)
+        for d in range(len(bases)):
+            parts = [enc[k - j][d][idx[:, j]] for j in range(order + 1)]
+            counts[d] += np.einsum("m," + spec, w, *parts)
+    return counts
