@@ -1,0 +1,329 @@
+"""Box-level filters that track the box centre on a sliding detector's :class:`~vidtrack.types.ScoreMap`.
+
+The video counterpart of the 1-D experiment of Chaudhuri, Freund & Hsu, "An
+Online Learning-based Framework for Tracking" (UAI 2010): the same score map
+(scores over box positions in a search window around the prior) is read by
+
+* :class:`NormalHedgeBoxFilter` -- the SMC NormalHedge tracker (Algorithms
+  2-3, :mod:`vidtrack.filters.normalhedge`); actions are box centres and an
+  action's loss is the clipped negative score of its box,
+  ``l_o(x) = -q(s(x))``, ``q(s) = min(hi, max(s, lo))`` (the seed's clipped
+  loss, Section 5);
+* :class:`ParticleBoxFilter` -- a SIR particle filter
+  (:mod:`vidtrack.filters.particle`) with a Gaussian random walk and the
+  likelihood ``p(s | x) ∝ exp(-(1 - s(x))^2 / 2 sigma_s^2)`` (the score of
+  the true box is modelled as 1 plus Gaussian noise, the analogue of the
+  seed's generative model);
+* :class:`GridBayesBoxFilter` -- the exact grid Bayes filter
+  (:mod:`vidtrack.filters.grid_bayes`) over a grid of centres covering the
+  frame with the same random walk and likelihood; cells outside the search
+  window are given the score ``outside_score`` (the detector's "background").
+
+All three mark the target ``lost`` when the map's peak score
+(``ScoreMap.quality``) is below ``lost_below``: they then skip the update and
+report their prediction.  Confidence is the weight (posterior) mass within
+``radius`` box sizes of the estimate, times the peak-score quality.  Each
+exposes ``stages_ = {"particles": (N, 3) [cx, cy, weight]}`` in frame
+coordinates after every update.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from scipy.ndimage import map_coordinates
+
+from ..types import LOST, TRACKING, Box, Estimate, Frame, Measurement, ScoreMap
+from .grid_bayes import gaussian_transition, grid_predict_separable, grid_update_log
+from .normalhedge import NormalHedgeTracker, weight_concentration
+from .particle import ParticleFilter, weighted_mean_cov
+
+
+def score_at_centres(smap: ScoreMap, centres: np.ndarray, outside: float = 0.0) -> np.ndarray:
+    """Bilinear score of the boxes centred at ``centres`` ``(K, 2)`` ``[cx, cy]``; ``outside`` off the map."""
+    centres = np.asarray(centres, dtype=float).reshape(-1, 2)
+    col = (centres[:, 0] - smap.box_size[0] / 2.0 - smap.origin[0]) / smap.step
+    row = (centres[:, 1] - smap.box_size[1] / 2.0 - smap.origin[1]) / smap.step
+    return map_coordinates(np.asarray(smap.scores, dtype=float), [row, col], order=1, mode="constant",
+                           cval=outside)
+
+
+def box_scale(box: Box) -> float:
+    return float(np.sqrt(max(box.area, 1.0)))
+
+
+def _usable(measurement: Measurement | None, lost_below: float) -> bool:
+    return (isinstance(measurement, ScoreMap) and measurement.scores.size > 0
+            and float(measurement.quality) >= lost_below)
+
+
+class _CentreBoxFilter:
+    """Shared book-keeping: fixed box size, prediction, lost handling, stages."""
+
+    lost_below: float
+    radius: float
+
+    def _box(self, centre: np.ndarray) -> Box:
+        return Box.from_center(float(centre[0]), float(centre[1]), *self.size_)
+
+    def _keep_in_frame(self, centre: np.ndarray) -> np.ndarray:
+        if self.frame_size_ is None:
+            return centre
+        return np.clip(centre, 0.0, np.asarray(self.frame_size_, dtype=float))
+
+    @property
+    def estimate(self) -> Estimate:
+        return self.estimate_
+
+    def _lost(self, prior: Estimate, quality: float, scalars: dict) -> Estimate:
+        self.estimate_ = Estimate(prior.box, prior.covariance, float(np.clip(quality, 0, 1)) * 0.5, LOST, scalars)
+        return self.estimate_
+
+
+class NormalHedgeBoxFilter(_CentreBoxFilter):
+    """SMC NormalHedge over box centres on a score map; see the module docstring.
+
+    Parameters
+    ----------
+    n_actions
+        ``N``.
+    alpha
+        Regret discount.
+    sigma_star
+        Re-sampling standard deviation (``sqrt Sigma_*``), in box sizes.
+    clip
+        ``(lo, hi)`` of the clipped score ``q``.
+    outside_score
+        Score of an action whose box lies outside the map.
+    lost_below
+        Peak score below which the frame is not used and the target is lost.
+    radius
+        Confidence radius, in box sizes.
+    velocity_gain
+        The dynamics function is ``F(x) = x + v`` with ``v`` a running
+        average (this gain per frame) of the estimate's displacement; 0 gives
+        the seed's identity ``F``.
+    rng
+        Seed or Generator.
+    """
+
+    def __init__(self, n_actions: int = 100, alpha: float = 0.3, sigma_star: float = 0.15,
+                 clip: tuple[float, float] = (-1.0, 1.0), outside_score: float = -1.0, lost_below: float = 0.35,
+                 radius: float = 0.15, velocity_gain: float = 0.2,
+                 rng: np.random.Generator | int | None = None) -> None:
+        self.velocity_gain = velocity_gain
+        self.n_actions = n_actions
+        self.alpha = alpha
+        self.sigma_star = sigma_star
+        self.clip = clip
+        self.outside_score = outside_score
+        self.lost_below = lost_below
+        self.radius = radius
+        self.rng = rng
+
+    def initialize(self, box: Box, frame: Frame | None = None) -> None:
+        self.size_ = box.size.copy()
+        self.scale_ = box_scale(box)
+        self.frame_size_ = None if frame is None else (frame.width, frame.height)
+        sigma = self.sigma_star * self.scale_
+        self.core_ = NormalHedgeTracker(self.n_actions, self.alpha, sigma, dynamics=None, rng=self.rng)
+        init_rng = np.random.default_rng(self.core_.rng)
+        self.core_.initialize(box.center + sigma * init_rng.standard_normal((self.n_actions, 2)))
+        self.core_.rng_ = init_rng
+        self.estimate_ = Estimate(box, np.eye(2) * sigma ** 2, 1.0, TRACKING)
+        self.velocity_ = np.zeros(2)
+        self.last_centre_ = box.center.copy()
+        self.stages_ = {}
+
+    def _cov(self, states: np.ndarray, weights: np.ndarray) -> np.ndarray:
+        return weighted_mean_cov(states, weights)[1] + np.eye(2) * 1e-6
+
+    def predict(self) -> Estimate:
+        # x_{i,t+1} = F(x_{i,t}) = x_{i,t} + v (v = 0: the seed's identity F);
+        # the prediction is the weighted mean of the moved actions.
+        self.core_.states_ = self.core_.states_ + self.velocity_
+        centre = self._keep_in_frame(self.core_.predict())
+        self.estimate_ = Estimate(self._box(centre), self._cov(self.core_.states_, self.core_.weights_),
+                                  self.estimate_.confidence, self.estimate_.status)
+        return self.estimate_
+
+    def losses(self, smap: ScoreMap, states: np.ndarray) -> np.ndarray:
+        """``l_o(x_i) = -q(s(x_i))`` for action centres ``(N, 2)``."""
+        scores = score_at_centres(smap, states, self.outside_score)
+        return -np.clip(scores, self.clip[0], self.clip[1])
+
+    def update(self, measurement: Measurement | None) -> Estimate:
+        prior = self.estimate_
+        quality = 0.0 if measurement is None else float(getattr(measurement, "quality", 0.0))
+        scalars = {"c_t": self.core_.c, "live_actions": float(self.core_.live_actions)}
+        self.stages_ = {"particles": np.column_stack([self.core_.states_, self.core_.weights_])}
+        if not _usable(measurement, self.lost_below):
+            return self._lost(prior, quality, scalars)
+        centre = self.core_.step(lambda s: self.losses(measurement, s))
+        centre = self._keep_in_frame(centre)
+        if self.velocity_gain > 0:
+            self.velocity_ = ((1 - self.velocity_gain) * self.velocity_
+                              + self.velocity_gain * (centre - self.last_centre_))
+        self.last_centre_ = centre.copy()
+        states, weights = self.core_.current_states_, self.core_.weights_
+        concentration = weight_concentration(states, weights, centre, self.radius * self.scale_)
+        scalars = {"c_t": self.core_.c, "live_actions": float(self.core_.live_actions),
+                   "concentration": concentration, "deleted": float(self.core_.deleted_)}
+        self.stages_ = {"particles": np.column_stack([states, weights])}
+        confidence = concentration * float(np.clip(quality, 0.0, 1.0))
+        self.estimate_ = Estimate(self._box(centre), self._cov(states, weights), confidence, TRACKING, scalars)
+        return self.estimate_
+
+
+def score_log_likelihood(scores: np.ndarray, sigma_s: float) -> np.ndarray:
+    """``log p(s | x) = -(1 - s)^2 / (2 sigma_s^2)``: the box's score is 1 plus Gaussian noise."""
+    return -np.square(1.0 - scores) / (2.0 * sigma_s ** 2)
+
+
+class ParticleBoxFilter(_CentreBoxFilter):
+    """SIR particle filter over box centres on a score map; see the module docstring.
+
+    Parameters
+    ----------
+    n_particles
+    sigma_d
+        Random-walk standard deviation per frame, in box sizes.
+    sigma_s
+        Score noise of the likelihood.
+    outside_score, lost_below, radius, rng
+        As in :class:`NormalHedgeBoxFilter`.
+    """
+
+    def __init__(self, n_particles: int = 100, sigma_d: float = 0.05, sigma_s: float = 0.1,
+                 outside_score: float = 0.0, lost_below: float = 0.35, radius: float = 0.15,
+                 rng: np.random.Generator | int | None = None) -> None:
+        self.n_particles = n_particles
+        self.sigma_d = sigma_d
+        self.sigma_s = sigma_s
+        self.outside_score = outside_score
+        self.lost_below = lost_below
+        self.radius = radius
+        self.rng = rng
+
+    def initialize(self, box: Box, frame: Frame | None = None) -> None:
+        self.size_ = box.size.copy()
+        self.scale_ = box_scale(box)
+        self.frame_size_ = None if frame is None else (frame.width, frame.height)
+        step = self.sigma_d * self.scale_
+
+        def propagate(x, rng):  # x_k = x_{k-1} + N(0, sigma_d^2 I)
+            return x + step * rng.standard_normal(x.shape)
+
+        def log_likelihood(x, smap):
+            return score_log_likelihood(score_at_centres(smap, x, self.outside_score), self.sigma_s)
+
+        self.core_ = ParticleFilter(propagate, log_likelihood, self.n_particles, self.rng)
+        self.core_.initialize(np.tile(box.center, (self.n_particles, 1)))
+        self.estimate_ = Estimate(box, np.eye(2) * step ** 2, 1.0, TRACKING)
+        self.stages_ = {}
+
+    def predict(self) -> Estimate:
+        # The SIR step propagates and weights together; the prior's mean is the
+        # current mean (the random walk does not move it).
+        mean, cov = weighted_mean_cov(self.core_.particles_, self.core_.weights_)
+        step = self.sigma_d * self.scale_
+        self.estimate_ = Estimate(self._box(self._keep_in_frame(mean)), cov + np.eye(2) * step ** 2,
+                                  self.estimate_.confidence, self.estimate_.status)
+        return self.estimate_
+
+    def update(self, measurement: Measurement | None) -> Estimate:
+        prior = self.estimate_
+        quality = 0.0 if measurement is None else float(getattr(measurement, "quality", 0.0))
+        if not _usable(measurement, self.lost_below):
+            self.core_.step(None)  # predict only: the cloud spreads by the random walk
+            self.stages_ = {"particles": np.column_stack([self.core_.particles_, self.core_.weights_])}
+            return self._lost(prior, quality, {})
+        log_evidence = self.core_.step(measurement)
+        mean, cov = weighted_mean_cov(self.core_.particles_, self.core_.weights_)
+        mean = self._keep_in_frame(mean)
+        concentration = weight_concentration(self.core_.particles_, self.core_.weights_, mean,
+                                             self.radius * self.scale_)
+        self.stages_ = {"particles": np.column_stack([self.core_.particles_, self.core_.weights_])}
+        scalars = {"concentration": concentration, "log_evidence": float(log_evidence),
+                   "effective_particles": float(1.0 / np.sum(self.core_.weights_ ** 2))}
+        confidence = concentration * float(np.clip(quality, 0.0, 1.0))
+        self.estimate_ = Estimate(self._box(mean), cov, confidence, TRACKING, scalars)
+        return self.estimate_
+
+
+class GridBayesBoxFilter(_CentreBoxFilter):
+    """Exact grid Bayes filter over box centres covering the frame; see the module docstring.
+
+    Parameters
+    ----------
+    cell
+        Grid spacing in box sizes (at least 1 pixel).
+    sigma_d, sigma_s, outside_score, lost_below, radius
+        As in :class:`ParticleBoxFilter`.
+    """
+
+    def __init__(self, cell: float = 0.05, sigma_d: float = 0.05, sigma_s: float = 0.1,
+                 outside_score: float = 0.0, lost_below: float = 0.35, radius: float = 0.15,
+                 rng: np.random.Generator | int | None = None) -> None:
+        self.cell = cell
+        self.sigma_d = sigma_d
+        self.sigma_s = sigma_s
+        self.outside_score = outside_score
+        self.lost_below = lost_below
+        self.radius = radius
+        self.rng = rng
+
+    def initialize(self, box: Box, frame: Frame | None = None) -> None:
+        self.size_ = box.size.copy()
+        self.scale_ = box_scale(box)
+        width, height = (frame.width, frame.height) if frame is not None else (
+            int(box.x + 3 * box.w) + 1, int(box.y + 3 * box.h) + 1)
+        self.frame_size_ = None if frame is None else (width, height)
+        spacing = max(1.0, self.cell * self.scale_)
+        self.xs_ = np.arange(0.0, width + spacing / 2, spacing)
+        self.ys_ = np.arange(0.0, height + spacing / 2, spacing)
+        sigma = max(self.sigma_d * self.scale_, 0.5 * spacing)
+        self.transitions_ = [gaussian_transition(self.ys_, sigma), gaussian_transition(self.xs_, sigma)]
+        p = np.zeros((len(self.ys_), len(self.xs_)))
+        cx, cy = box.center
+        p[np.argmin(np.abs(self.ys_ - cy)), np.argmin(np.abs(self.xs_ - cx))] = 1.0   # prior: the init box
+        self.p_ = grid_predict_separable(p, self.transitions_)
+        self.estimate_ = Estimate(box, np.eye(2) * sigma ** 2, 1.0, TRACKING)
+        self.stages_ = {}
+
+    def _moments(self) -> tuple[np.ndarray, np.ndarray]:
+        px, py = self.p_.sum(axis=0), self.p_.sum(axis=1)
+        mean = np.array([px @ self.xs_, py @ self.ys_])
+        var = np.array([px @ (self.xs_ - mean[0]) ** 2, py @ (self.ys_ - mean[1]) ** 2])
+        return mean, np.diag(var)
+
+    def _points(self, limit: int = 400) -> np.ndarray:
+        """The most probable cells as ``(K, 3)`` ``[cx, cy, p]``."""
+        flat = self.p_.ravel()
+        k = min(limit, flat.size)
+        top = np.argpartition(flat, -k)[-k:]
+        rows, cols = np.unravel_index(top, self.p_.shape)
+        return np.column_stack([self.xs_[cols], self.ys_[rows], flat[top]])
+
+    def predict(self) -> Estimate:
+        self.p_ = grid_predict_separable(self.p_, self.transitions_)   # p(x_k | z_1:k-1)
+        mean, cov = self._moments()
+        self.estimate_ = Estimate(self._box(mean), cov, self.estimate_.confidence, self.estimate_.status)
+        return self.estimate_
+
+    def update(self, measurement: Measurement | None) -> Estimate:
+        prior = self.estimate_
+        quality = 0.0 if measurement is None else float(getattr(measurement, "quality", 0.0))
+        if not _usable(measurement, self.lost_below):
+            self.stages_ = {"particles": self._points()}
+            return self._lost(prior, quality, {})
+        gx, gy = np.meshgrid(self.xs_, self.ys_)
+        scores = score_at_centres(measurement, np.column_stack([gx.ravel(), gy.ravel()]), self.outside_score)
+        loglik = score_log_likelihood(scores, self.sigma_s).reshape(self.p_.shape)
+        self.p_ = grid_update_log(self.p_.ravel(), loglik.ravel()).reshape(self.p_.shape)
+        mean, cov = self._moments()
+        d2 = (gx - mean[0]) ** 2 + (gy - mean[1]) ** 2
+        concentration = float(self.p_[d2 <= (self.radius * self.scale_) ** 2].sum())
+        self.stages_ = {"particles": self._points()}
+        confidence = concentration * float(np.clip(quality, 0.0, 1.0))
+        self.estimate_ = Estimate(self._box(mean), cov, confidence, TRACKING, {"concentration": concentration})
+        return self.estimate_

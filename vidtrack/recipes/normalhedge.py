@@ -1,0 +1,66 @@
+"""NormalHedge tracking and its generative comparators on sliding-detector score maps.
+
+Chaudhuri, Freund & Hsu, "An Online Learning-based Framework for Tracking"
+(UAI 2010) on video: ``nh`` (SMC NormalHedge), ``pf`` (SIR particle filter)
+and ``bayes`` (exact grid Bayes) all read the same
+:class:`~vidtrack.types.ScoreMap`, from the online NCC template detector
+(``detector="ncc"``, default) or OpenCV's cascade face detector
+(``detector="face"``, the seed's motivating example).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+
+from ..errors import UsageError
+from ..filters.score_trackers import GridBayesBoxFilter, NormalHedgeBoxFilter, ParticleBoxFilter
+from ..measure.score_map import NCCScoreMapMeasurer
+from ..tracker import Recipe, Tracker
+from ..types import Frame, TrackState
+
+DETECTORS = ("ncc", "face")
+
+
+class StagedTracker(Tracker):
+    """A :class:`Tracker` that also shows the filter's own stages (``filter.stages_``, e.g. particles)."""
+
+    def step(self, frame: Frame) -> TrackState:
+        state = super().step(frame)
+        extra = getattr(self.filter, "stages_", None)
+        if extra:
+            state = dataclasses.replace(state, stages={**state.stages, **extra})
+        return state
+
+
+def make_measurer(detector: str = "ncc", **options):
+    """The score-map measurer named ``detector``."""
+    if detector == "ncc":
+        return NCCScoreMapMeasurer(**options)
+    if detector == "face":
+        from ..measure.face import FaceScoreMapMeasurer, find_face_cascade
+
+        find_face_cascade()  # fail now, with a one-line message, if there is no cascade
+        return FaceScoreMapMeasurer(**options)
+    raise UsageError(f"unknown detector {detector!r}; valid detectors: {', '.join(DETECTORS)}")
+
+
+def _builder(make_filter):
+    def build(seed=None, detector: str = "ncc", **options) -> Tracker:
+        measurer = make_measurer(detector)
+        unknown = set(options)
+        if unknown:
+            raise UsageError(f"unsupported option(s) for this filter: {', '.join(sorted(unknown))}")
+        return StagedTracker(measurer, make_filter(np.random.default_rng(seed)))
+    return build
+
+
+RECIPES = {
+    "nh": Recipe("SMC NormalHedge on a sliding-detector score map (Chaudhuri, Freund & Hsu 2010)",
+                 _builder(lambda rng: NormalHedgeBoxFilter(rng=rng))),
+    "pf": Recipe("SIR particle filter on a sliding-detector score map (NormalHedge paper's comparator)",
+                 _builder(lambda rng: ParticleBoxFilter(rng=rng))),
+    "bayes": Recipe("exact grid Bayes filter on a sliding-detector score map (NormalHedge paper's comparator)",
+                    _builder(lambda rng: GridBayesBoxFilter(rng=rng))),
+}
