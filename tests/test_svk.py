@@ -145,17 +145,22 @@ def test_measured_axis_model_embeds_with_unmodelled_variance():
     assert H.shape == (2, 1) and R.shape == (2, 2)
 
 
-def test_svk_tables_one_run_matches_the_seed_shape():
+def test_svk_tables_one_run_matches_the_seed():
     from vidtrack.experiments import svk_tables
 
     parser = argparse.ArgumentParser()
     svk_tables.add_arguments(parser)
     args = parser.parse_args([])
-    args.runs, args.seed, args.experiment = 1, 0, "svk-linear"
-    result = svk_tables.run(args, lambda it, **kw: it)
-    rows = {row["filter"]: row for row in result["R100"]}
-    assert list(rows) == list(svk_tables.FILTER_NAMES)
-    assert set(rows["SVK"]) == {"filter", "whole", "CA", "Drift", "CV", "CA*", "Drift*", "CV*"}
-    assert abs(rows["SVK"]["whole"] - 22.41) / 22.41 < 0.25
-    assert rows["Kalman DR Q=1e-2R"]["whole"] > 1000.0
-    assert "Table 1" in svk_tables.format_table(result)
+    makers = svk_tables.make_filters(args, "linear", 100.0)
+    assert set(makers) == set(svk_tables.FILTER_NAMES)
+    chosen = {name: makers[name] for name in ("SVK", "Kalman DR Q=1e-2R")}
+    errors = svk_tables.squared_errors("linear", 100.0, chosen, np.random.default_rng(0),
+                                       svk_tables.linear_motion())
+    svk_rmse = float(np.sqrt(errors["SVK"].mean()))
+    assert abs(svk_rmse - 22.41) / 22.41 < 0.25  # Table 1, whole sequence
+    assert np.sqrt(errors["Kalman DR Q=1e-2R"].mean()) > 1000.0
+    mean_sq = {name: errors.get(name, errors["SVK"]) for name in svk_tables.FILTER_NAMES}
+    rows = svk_tables.summarise("linear", mean_sq)
+    assert set(rows[0]) == {"filter", "whole", "CA", "Drift", "CV", "CA*", "Drift*", "CV*"}
+    table = svk_tables.format_table({"experiment": "svk-linear", "runs": 1, "seed": 0, "R100": rows})
+    assert "Table 1" in table and "Kalman DR Q=1e-4R" in table

@@ -130,6 +130,8 @@ class SupportVectorKalman:
         """Algorithm 1's main loop: train the SVRs, set ``F_{k+1}``, ``u_{k+1}``, ``Q_{k+1}``."""
         F, u, variances = learn_transition(np.array(self.inputs_), np.array(self.outputs_),
                                            C=self.C, epsilon=self.epsilon, n_folds=self.n_folds)
+        if not (np.all(np.isfinite(F)) and np.all(np.isfinite(u)) and np.all(np.isfinite(variances))):
+            return  # a degenerate window (e.g. non-finite states): keep the current model
         self.F_, self.u_, self.cv_variance_ = F, u, variances
         self.Q_ = learned_process_noise(variances, process_noise_floor(self.H, R, self.q_floor))
         self.learned_ = True
