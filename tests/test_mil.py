@@ -1,0 +1,96 @@
+"""Multiple Instance Filtering: measurement of a known inlier set, the Kalman filter, a synthetic track."""
+
+import numpy as np
+import pytest
+
+from vidtrack.filters.mil import (MILKalmanFilter, box_from_state, inlier_measurement, locate_inliers,
+                                  state_from_box)
+from vidtrack.measure import superpixels as sp
+from vidtrack.tracker import build_tracker
+from vidtrack.types import Box, Estimate, Frame, Superpixels
+
+
+def test_measurement_of_a_known_inlier_set():
+    # a 4x4 grid of 10x10 superpixels; inliers are the 2x3 block at columns 1-3, rows 1-2
+    labels = np.repeat(np.repeat(np.arange(16).reshape(4, 4), 10, axis=0), 10, axis=1)
+    inliers = np.zeros(16, bool)
+    inliers[[5, 6, 7, 9, 10, 11]] = True
+    centre, size, mass = inlier_measurement(labels, inliers)
+    assert mass == 600
+    assert centre == pytest.approx([25.0, 20.0])  # pixels 10..39 x 10..29 -> centre (25, 20)
+    assert size == pytest.approx([30.0, 20.0], abs=0.05)  # sqrt(12 var + 1) of a uniform run
+    located = locate_inliers(labels, inliers.astype(float), np.array([30.0, 20.0]), np.array([22.0, 18.0]))
+    assert located[0] == pytest.approx([25.0, 20.0], abs=0.6)
+    assert inlier_measurement(labels, np.zeros(16, bool)) is None
+
+
+def test_state_box_round_trip():
+    box = Box(10, 20, 30, 40)
+    assert box_from_state(state_from_box(box)) == box
+
+
+def _superpixels(box, quality=1.0):
+    return Superpixels(labels=np.zeros((2, 2), int), features=np.zeros((1, 1)), scores=np.array([1.0]),
+                       inliers=np.array([box is not None]), box=box, quality=quality)
+
+
+def test_filter_follows_measurements_and_predicts_when_no_inliers():
+    f = MILKalmanFilter()
+    f.initialize(Box(100, 100, 20, 20))
+    for k in range(1, 30):  # constant velocity 2 px/frame in x
+        f.predict()
+        est = f.update(_superpixels(Box(100 + 2 * k, 100, 20, 20)))
+        assert est.status == "tracking"
+    assert f.x_[1] == pytest.approx(2.0, abs=0.3)
+    prior = f.predict()
+    lost = f.update(_superpixels(None, quality=0.0))
+    assert lost.status == "lost"
+    assert lost.box.x == pytest.approx(prior.box.x)
+    assert lost.confidence < 0.5
+    assert f.update(None).status == "lost"
+    # Joseph form keeps P symmetric positive definite
+    assert np.allclose(f.P_, f.P_.T)
+    assert np.all(np.linalg.eigvalsh(f.P_) > 0)
+
+
+def test_descriptors_and_feature_map():
+    rng = np.random.default_rng(0)
+    img = rng.integers(0, 255, (40, 60, 3), dtype=np.uint8)
+    labels = sp.slic_labels(img, region_size=8)
+    K = labels.max() + 1
+    desc = sp.superpixel_descriptors(img, labels)
+    assert desc.shape[0] == K and np.all(desc >= 0) and np.all(desc <= 1 + 1e-9)
+    # the explicit map approximates the additive chi2 kernel k(x, y) = sum 2 x y / (x + y)
+    x, y = desc[0], desc[1]
+    exact = np.sum(np.where(x + y > 0, 2 * x * y / np.maximum(x + y, 1e-12), 0.0))
+    approx = sp.chi2_feature_map(x[None], order=2)[0] @ sp.chi2_feature_map(y[None], order=2)[0]
+    assert approx == pytest.approx(exact, rel=0.05)
+    pairs, lengths = sp.adjacency(labels)
+    assert np.all(pairs[:, 0] < pairs[:, 1]) and np.all(lengths > 0)
+
+
+def _scene(index, cx, cy):
+    rng = np.random.default_rng(100 + index)
+    img = np.empty((120, 160, 3), np.uint8)
+    img[:] = (60, 140, 60)
+    img += rng.integers(0, 20, img.shape, dtype=np.uint8)
+    x0, y0 = int(cx - 12), int(cy - 12)
+    img[y0:y0 + 24, x0:x0 + 24] = (30, 40, 220)  # red square with a stripe
+    img[y0 + 8:y0 + 16, x0:x0 + 24] = (220, 220, 40)
+    return Frame(index, img)
+
+
+def test_mil_tracks_a_moving_square_and_exposes_stages():
+    tracker = build_tracker("mil", seed=0)
+    tracker.initialize(_scene(0, 50, 60), Box(38, 48, 24, 24))
+    state = None
+    for k in range(1, 25):
+        state = tracker.step(_scene(k, 50 + 2 * k, 60 + k))
+    truth = np.array([50 + 2 * 24, 60 + 24])
+    assert np.linalg.norm(state.box.center - truth) < 6
+    assert state.status == "tracking"
+    for name in ("superpixels", "svm_scores", "inliers"):
+        assert name in state.stages
+    assert state.stages["superpixels"].shape == state.stages["inliers"].shape
+    for name in ("inlier_count", "svm_margin", "covariance_trace"):
+        assert name in state.scalars

@@ -1,0 +1,56 @@
+"""Pegasos (Shalev-Shwartz et al.) reaches the linear SVM optimum."""
+
+import numpy as np
+import pytest
+
+from vidtrack.learn.pegasos import PegasosSVM, pegasos_step, svm_objective
+
+
+def separable_set(rng, n=60):
+    X = np.vstack([rng.normal([2.0, 2.0], 0.4, (n // 2, 2)), rng.normal([-2.0, -1.0], 0.4, (n // 2, 2))])
+    y = np.r_[np.ones(n // 2), -np.ones(n // 2)]
+    return X, y
+
+
+def reference_optimum(X, y, lam):
+    """Minimise the same objective (bias as a regularised feature) with scipy."""
+    from scipy.optimize import minimize
+
+    Xa = np.hstack([X, np.ones((len(X), 1))])
+    fun = lambda w: svm_objective(w, Xa, y, lam)  # noqa: E731
+    best = min((minimize(fun, w0, method="Powell", options={"xtol": 1e-8, "ftol": 1e-12, "maxiter": 20000})
+                for w0 in (np.zeros(3), np.ones(3))), key=lambda r: r.fun)
+    return best.x, best.fun
+
+
+def test_pegasos_reaches_the_svm_optimum_on_a_separable_set():
+    rng = np.random.default_rng(0)
+    X, y = separable_set(rng)
+    lam = 0.05
+    svm = PegasosSVM(lam=lam, n_iter=4000, balanced=False).fit(X, y)
+    w_ref, f_ref = reference_optimum(X, y, lam)
+    assert svm.objective(X, y) == pytest.approx(f_ref, abs=2e-3)
+    assert np.allclose(svm.coef_, w_ref, atol=0.05)
+    assert np.all(np.sign(svm.decision_function(X)) == y)
+
+
+def test_projection_keeps_w_in_the_ball():
+    rng = np.random.default_rng(1)
+    X, y = separable_set(rng)
+    Xa = np.hstack([X * 100.0, np.ones((len(X), 1))])
+    lam = 0.1
+    w = pegasos_step(np.zeros(3), Xa, y, 1, lam)
+    assert np.linalg.norm(w) <= 1.0 / np.sqrt(lam) + 1e-9
+
+
+def test_partial_fit_continues_and_minibatches_are_seeded():
+    rng = np.random.default_rng(2)
+    X, y = separable_set(rng, 100)
+    a = PegasosSVM(lam=0.01, n_iter=50, batch_size=10, rng=3)
+    b = PegasosSVM(lam=0.01, n_iter=50, batch_size=10, rng=3)
+    a.partial_fit(X, y)
+    b.partial_fit(X, y)
+    assert np.array_equal(a.coef_, b.coef_)
+    a.partial_fit(X, y)
+    assert a.t_ == 100
+    assert np.mean(np.sign(a.decision_function(X)) == y) == 1.0

@@ -1,0 +1,99 @@
+"""``vidtrack bench``: per-stage time per frame of a tracker, so the next optimisation is visible.
+
+Stages: ``decode`` (reading the frame), the measurer's own stages (for the
+MIL filter ``superpixels``, ``features``, ``svm``, ``graphcut``; a measurer
+reports them in a ``timings_`` dict of accumulated seconds), ``measure
+(other)`` (measurer time not in a named stage), ``filter`` (predict +
+update) and ``learn`` (time in ``learn`` not in a named stage).
+"""
+
+from __future__ import annotations
+
+import sys
+import time
+from collections import defaultdict
+from typing import Sequence
+
+from .errors import UsageError
+
+
+def build_parser():
+    from .cli import OneLineParser
+
+    parser = OneLineParser(prog="vidtrack bench",
+                           description="Time every stage of a tracker per frame on a video or frame folder.")
+    parser.add_argument("video", help="video file or folder of frame images")
+    parser.add_argument("--init-box", required=True, metavar="x,y,w,h", help="the object's box in the first frame")
+    parser.add_argument("--filter", default="mil", metavar="NAME", help="tracker to time (default mil)")
+    parser.add_argument("--max-frames", type=int, default=300, metavar="N", help="frames to time (default 300)")
+    parser.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
+    return parser
+
+
+def main(argv: Sequence[str]) -> int:
+    from .cli import check_box_in_frame, parse_box
+    from .sources import open_source
+    from .tracker import build_tracker
+
+    args = build_parser().parse_args(list(argv))
+    if args.max_frames < 2:
+        raise UsageError("--max-frames must be at least 2")
+    box = parse_box(args.init_box)
+    tracker = build_tracker(args.filter, seed=args.seed)
+    source = iter(open_source(args.video))
+    totals: dict[str, float] = defaultdict(float)
+    frames = 0
+    t0 = time.perf_counter()
+    first = next(source, None)
+    if first is None:
+        raise UsageError(f"{args.video} holds no frames")
+    totals["decode"] += time.perf_counter() - t0
+    check_box_in_frame(first, box)
+    tracker.initialize(first, box)
+    measurer, filt = tracker.measurer, tracker.filter
+    stage_time = getattr(measurer, "timings_", None)
+    if stage_time is not None:
+        stage_time.clear()  # time the steady state, not the bootstrap
+    wall = 0.0
+    while frames < args.max_frames - 1:
+        t = time.perf_counter()
+        frame = next(source, None)
+        totals["decode"] += time.perf_counter() - t
+        if frame is None:
+            break
+        start = time.perf_counter()
+        named_before = sum(stage_time.values()) if stage_time is not None else 0.0
+        t = time.perf_counter()
+        prior = filt.predict()
+        totals["filter"] += time.perf_counter() - t
+        t = time.perf_counter()
+        measurement = measurer.measure(frame, prior)
+        measure_s = time.perf_counter() - t
+        named_mid = sum(stage_time.values()) if stage_time is not None else 0.0
+        totals["measure (other)"] += measure_s - (named_mid - named_before)
+        t = time.perf_counter()
+        posterior = filt.update(measurement)
+        totals["filter"] += time.perf_counter() - t
+        t = time.perf_counter()
+        measurer.learn(frame, posterior)
+        learn_s = time.perf_counter() - t
+        named_after = sum(stage_time.values()) if stage_time is not None else 0.0
+        totals["learn (other)"] += learn_s - (named_after - named_mid)
+        wall += time.perf_counter() - start
+        frames += 1
+    if frames == 0:
+        raise UsageError("need at least two frames to benchmark")
+    if stage_time is not None:
+        totals.update(stage_time)
+    order = ["decode", "superpixels", "features", "svm", "graphcut", "measure (other)", "filter", "learn (other)"]
+    names = [n for n in order if n in totals] + sorted(n for n in totals if n not in order)
+    print(f"vidtrack bench: {args.filter} on {args.video}, {frames} frames after the first")
+    print(f"{'stage':<16}{'ms/frame':>10}{'share':>8}")
+    total_ms = sum(totals.values()) / frames * 1000
+    for name in names:
+        ms = totals[name] / frames * 1000
+        print(f"{name:<16}{ms:>10.2f}{ms / total_ms * 100:>7.1f}%")
+    print(f"{'total':<16}{total_ms:>10.2f}")
+    print(f"tracking fps (decode excluded): {frames / wall:.1f}")
+    sys.stdout.flush()
+    return 0

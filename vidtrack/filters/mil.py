@@ -1,0 +1,596 @@
+"""Multiple Instance Filtering (Wnuk & Soatto): a Kalman filter whose inliers an online SVM selects.
+
+Model (sec. 1.2, eqs. 2 and 8 of the paper)::
+
+    x(t+1) = F x(t) + v(t),          x = [c, v_c, d, v_d]   (centre, its velocity, size, its rate)
+    w(t+1) = stochSubgradIters(w(t), y(t), O(t))          (Pegasos, vidtrack.learn.pegasos)
+    O(t)   = argmin_O E(y(t), w(t), x(t), O)             (graph cut, vidtrack.learn.graphcut)
+    h(y(t)_{i in O(t)}) = C x(t) + n(t)                  (centroid and extent of the inliers)
+
+``F`` is block-diagonal constant velocity and ``C`` picks ``c`` and ``d``.
+The state here is stored axis-major, ``[c_x, v_cx, c_y, v_cy, d_w, v_dw,
+d_h, v_dh]`` (a permutation of the paper's ordering), so that
+:func:`vidtrack.filters.kalman.motion_model` builds ``F``, ``Q`` and ``C``;
+prediction and the Joseph-form update are
+:func:`~vidtrack.filters.kalman.kf_predict` and
+:func:`~vidtrack.filters.kalman.kf_update`.
+
+Two pieces sit on the tracker's data path:
+
+* :class:`MILMeasurer` cuts the search region (the prediction enlarged by
+  ``lam = 3`` standard deviations of the predicted centre, eq. 8), computes
+  SLIC superpixels there, their descriptors and chi-squared feature maps,
+  the SVM scores, and the inliers by a graph cut inside the positive bag;
+  the measurement is the centroid and extent of the inlier pixels.  In
+  ``learn`` it relabels the frame's superpixels from the filter's posterior
+  (the semi-supervised loop of eq. 5) into a training set of
+  ``(descriptor, label, time)`` triples kept ``gamma_max = 25`` frames, and
+  takes Pegasos steps every ``update_every = 6`` frames.
+* :class:`MILKalmanFilter` is the Kalman filter on ``x``; no inliers means
+  predict only and status ``lost``.
+"""
+
+from __future__ import annotations
+
+import time
+from collections import defaultdict
+from dataclasses import dataclass
+
+import cv2
+import numpy as np
+
+from ..learn.graphcut import select_inliers
+from ..learn.pegasos import PegasosSVM
+from ..measure import superpixels as sp
+from ..types import LOST, TRACKING, Box, Estimate, Frame, Superpixels
+from .kalman import kf_predict, kf_update, motion_model
+
+# ------------------------------------------------------------------ pure maths
+
+
+def mil_motion_model(box_scale: float, *, q_centre: float, q_size: float):
+    """``(F, Q, C)`` for the axis-major state ``[c_x, v_cx, c_y, v_cy, d_w, v_dw, d_h, v_dh]``.
+
+    Constant velocity on all four axes; the velocity of the centre takes a
+    random step of standard deviation ``q_centre * s`` per frame, that of the
+    size ``q_size * s`` (``s`` the box scale ``sqrt(w h)``).
+    """
+    F, Q, C = motion_model("cv", q=1.0, n_axes=4)
+    scale = np.repeat([(q_centre * box_scale) ** 2] * 2 + [(q_size * box_scale) ** 2] * 2, 2)
+    return F, Q * scale[:, None], C
+
+
+def state_from_box(box: Box) -> np.ndarray:
+    """``x`` with zero velocities for ``box``."""
+    cx, cy = box.center
+    return np.array([cx, 0.0, cy, 0.0, box.w, 0.0, box.h, 0.0])
+
+
+def box_from_state(x: np.ndarray, *, min_size: float = 4.0) -> Box:
+    """The box ``[c, d]`` of a state (size floored at ``min_size``)."""
+    return Box.from_center(x[0], x[2], max(x[4], min_size), max(x[6], min_size))
+
+
+def inlier_measurement(labels: np.ndarray, inliers: np.ndarray, *, weights: np.ndarray | None = None):
+    """Centroid and extent of the inlier pixels (the paper's ``h_1``, ``h_2``), region pixels.
+
+    The extent along each axis is ``sqrt(12 var)``, the side of a uniformly
+    filled box with the same second moment (robust to a few stray pixels,
+    unlike the bounding box of the inliers).
+
+    Parameters
+    ----------
+    labels
+        ``(h, w) int`` superpixel labels.
+    inliers
+        ``(K,) bool`` inlier superpixels.
+    weights
+        Optional ``(K,)`` non-negative weight per superpixel (default 1).
+
+    Returns
+    -------
+    (centre ``(2,)``, size ``(2,)``, mass) or None when there is no inlier pixel.
+    """
+    w_sp = inliers.astype(float) if weights is None else inliers * np.asarray(weights, float)
+    w_pix = w_sp[labels]
+    mass = float(w_pix.sum())
+    if mass <= 0:
+        return None
+    h, w = labels.shape
+    vs, us = np.arange(h, dtype=float), np.arange(w, dtype=float)
+    col = w_pix.sum(axis=0)
+    row = w_pix.sum(axis=1)
+    cu = float(col @ us) / mass
+    cv = float(row @ vs) / mass
+    var_u = float(col @ (us - cu) ** 2) / mass
+    var_v = float(row @ (vs - cv) ** 2) / mass
+    size = np.sqrt(12.0 * np.array([var_u, var_v]) + 1.0)
+    return np.array([cu + 0.5, cv + 0.5]), size, mass
+
+
+def locate_inliers(labels: np.ndarray, weights: np.ndarray, box_size: np.ndarray, start: np.ndarray, *,
+                   iterations: int = 6):
+    """Where the inliers concentrate: peak of the smoothed inlier map, refined by mean shift.
+
+    The paper selects the box location on a smoothed score (its fig. 3).  The
+    per-pixel inlier weight is blurred with a Gaussian of ``box_size / 4``;
+    from its peak (ties broken towards ``start``) a few mean-shift steps with
+    a flat box-sized window move to the centroid of the inlier pixels the box
+    covers; the measurement is that centroid and the extent of those pixels.
+
+    Parameters
+    ----------
+    labels
+        ``(h, w) int`` superpixel labels.
+    weights
+        ``(K,)`` non-negative weight per superpixel (0 for outliers).
+    box_size
+        ``(2,)`` predicted box size ``(w, h)`` in region pixels.
+    start
+        ``(2,)`` predicted centre ``(u, v)`` in region pixels.
+
+    Returns
+    -------
+    (centre ``(2,)``, size ``(2,)``, mass inside the box) or None when no weight.
+    """
+    w_pix = np.asarray(weights, float)[labels].astype(np.float32)
+    if not np.any(w_pix > 0):
+        return None
+    h, w = labels.shape
+    sx, sy = max(box_size[0] / 4.0, 1.0), max(box_size[1] / 4.0, 1.0)
+    smooth = cv2.GaussianBlur(w_pix, (0, 0), sigmaX=sx, sigmaY=sy)
+    vv, uu = np.indices((h, w))
+    d2 = ((uu + 0.5 - start[0]) / box_size[0]) ** 2 + ((vv + 0.5 - start[1]) / box_size[1]) ** 2
+    smooth = smooth * np.exp(-0.5 * d2)  # gentle preference for the prediction on ties
+    v0, u0 = np.unravel_index(int(np.argmax(smooth)), smooth.shape)
+    c = np.array([u0 + 0.5, v0 + 0.5])
+    for _ in range(max(iterations, 1)):
+        x0, y0 = int(round(c[0] - box_size[0] / 2)), int(round(c[1] - box_size[1] / 2))
+        x1, y1 = int(round(c[0] + box_size[0] / 2)), int(round(c[1] + box_size[1] / 2))
+        x0, y0, x1, y1 = max(x0, 0), max(y0, 0), min(x1, w), min(y1, h)
+        win = w_pix[y0:y1, x0:x1]
+        mass = float(win.sum())
+        if mass <= 0:
+            return None
+        col, row = win.sum(axis=0), win.sum(axis=1)
+        us, vs = np.arange(x0, x1) + 0.5, np.arange(y0, y1) + 0.5
+        new = np.array([col @ us, row @ vs]) / mass
+        if np.allclose(new, c, atol=0.25):
+            c = new
+            break
+        c = new
+    var = np.array([col @ (us - c[0]) ** 2, row @ (vs - c[1]) ** 2]) / mass
+    return c, np.sqrt(12.0 * var + 1.0), mass
+
+
+def locate_window(labels: np.ndarray, evidence: np.ndarray, box_size: np.ndarray, start: np.ndarray, *,
+                  motion_weight: float = 0.1):
+    """Box centre maximising the mean per-pixel evidence under a box-sized window.
+
+    The paper selects the box location on a smoothed score (its fig. 3): here
+    the smoothing is the box-sized mean filter, so the measured centre is
+    where a box of the predicted size covers the most inlier / positive
+    evidence and the least negative, minus ``motion_weight`` times the squared
+    displacement from the prediction in box units.
+
+    Parameters
+    ----------
+    labels
+        ``(h, w) int`` superpixel labels.
+    evidence
+        ``(K,)`` per-superpixel evidence in about [-1, 1].
+    box_size, start
+        Predicted size and centre ``(u, v)`` in region pixels.
+
+    Returns
+    -------
+    (centre ``(2,)``, peak mean evidence)
+    """
+    ev = np.asarray(evidence, np.float32)[labels]
+    bw, bh = max(int(round(box_size[0])), 1), max(int(round(box_size[1])), 1)
+    mean = cv2.boxFilter(ev, -1, (bw, bh), normalize=True, borderType=cv2.BORDER_CONSTANT)
+    h, w = labels.shape
+    us = (np.arange(w) + 0.5 - start[0]) / box_size[0]
+    vs = (np.arange(h) + 0.5 - start[1]) / box_size[1]
+    objective = mean - motion_weight * (vs[:, None] ** 2 + us[None, :] ** 2)
+    v0, u0 = np.unravel_index(int(np.argmax(objective)), objective.shape)
+    # the box filter's anchor is the window centre (odd sizes) or just right of it
+    cu = u0 + 0.5 - (0.5 if bw % 2 == 0 else 0.0)
+    cv = v0 + 0.5 - (0.5 if bh % 2 == 0 else 0.0)
+    return np.array([cu, cv]), float(mean[v0, u0])
+
+
+# ------------------------------------------------------------------ the filter
+
+
+class MILKalmanFilter:
+    """Kalman filter on ``x = [c, v_c, d, v_d]`` fed by superpixel-inlier measurements.
+
+    Parameters
+    ----------
+    q_centre, q_size
+        Process noise of the centre / size velocities per frame, as a fraction of the box scale.
+    r_centre, r_size
+        Measurement noise standard deviation of the centre / size at quality 1,
+        as a fraction of the box scale (divided by ``sqrt(quality)``).
+    initial_sigma
+        Initial standard deviation of the centre and size, fraction of the box scale.
+    lost_below
+        Measurements below this quality are not used (predict only, ``lost``).
+    gate
+        Squared Mahalanobis distance of the centre innovation beyond which a
+        measurement is rejected as an outlier (predict only, ``lost``).
+    coast_damping
+        Factor on the velocities per frame without a measurement.
+    size_limits
+        The size stays within these multiples of the initial size.
+    """
+
+    def __init__(self, *, q_centre: float = 0.04, q_size: float = 0.004, r_centre: float = 0.08,
+                 r_size: float = 1.0, initial_sigma: float = 0.05, lost_below: float = 0.15,
+                 gate: float = 25.0, coast_damping: float = 0.7,
+                 size_limits: tuple[float, float] = (0.5, 2.0)) -> None:
+        self.q_centre = q_centre
+        self.q_size = q_size
+        self.r_centre = r_centre
+        self.r_size = r_size
+        self.initial_sigma = initial_sigma
+        self.lost_below = lost_below
+        self.gate = gate
+        self.coast_damping = coast_damping
+        self.size_limits = size_limits
+
+    def initialize(self, box: Box, frame: Frame | None = None) -> None:
+        self.scale_ = float(np.sqrt(max(box.area, 1.0)))
+        self.F_, self.Q_, self.C_ = mil_motion_model(self.scale_, q_centre=self.q_centre, q_size=self.q_size)
+        self.x_ = state_from_box(box)
+        self.P_ = np.eye(8) * (self.initial_sigma * self.scale_) ** 2
+        self.init_size_ = box.size.copy()
+        self.frame_size_ = None if frame is None else (frame.width, frame.height)
+        self.estimate_ = Estimate(box, self.C_ @ self.P_ @ self.C_.T, 1.0, TRACKING)
+
+    @property
+    def estimate(self) -> Estimate:
+        return self.estimate_
+
+    def _box(self) -> Box:
+        return box_from_state(self.x_)
+
+    def predict(self) -> Estimate:
+        self.x_, self.P_ = kf_predict(self.x_, self.P_, self.F_, self.Q_)  # x = F x, P = F P F' + Q
+        self._clamp()
+        self.estimate_ = Estimate(self._box(), self.C_ @ self.P_ @ self.C_.T,
+                                  self.estimate_.confidence, self.estimate_.status)
+        return self.estimate_
+
+    def _clamp(self) -> None:
+        lo, hi = self.size_limits
+        for k, axis in ((4, 0), (6, 1)):
+            self.x_[k] = np.clip(self.x_[k], lo * self.init_size_[axis], hi * self.init_size_[axis])
+        if self.frame_size_ is not None:
+            self.x_[0] = np.clip(self.x_[0], 0.0, self.frame_size_[0])
+            self.x_[2] = np.clip(self.x_[2], 0.0, self.frame_size_[1])
+
+    def _coast(self) -> None:
+        self.x_[[1, 3, 5, 7]] *= self.coast_damping
+
+    def measurement_noise(self, quality: float) -> np.ndarray:
+        """``R`` at measurement ``quality``: ``diag(r_c, r_c, r_d, r_d)^2 s^2 / quality``."""
+        s = self.scale_
+        r = np.array([self.r_centre, self.r_centre, self.r_size, self.r_size]) * s
+        return np.diag(r ** 2) / max(quality, 0.05)
+
+    def update(self, measurement: Superpixels | None) -> Estimate:
+        box = None if measurement is None else measurement.box
+        quality = 0.0 if measurement is None else float(measurement.quality)
+        scalars: dict[str, float] = {}
+        if measurement is not None and len(measurement.inliers):
+            scalars["inlier_count"] = float(np.sum(measurement.inliers))
+            if np.any(measurement.inliers):
+                scalars["svm_margin"] = float(np.mean(measurement.scores[measurement.inliers]))
+        status = LOST
+        if box is not None and quality >= self.lost_below:
+            z = np.array([*box.center, box.w, box.h])
+            R = self.measurement_noise(quality)
+            y = z[:2] - self.x_[[0, 2]]
+            S = (self.C_ @ self.P_ @ self.C_.T + R)[:2, :2]
+            d2 = float(y @ np.linalg.solve(S, y))
+            scalars["innovation"] = float(np.linalg.norm(y))
+            if d2 <= self.gate:
+                result = kf_update(self.x_, self.P_, z, self.C_, R)  # Joseph form
+                self.x_, self.P_ = result.x, result.P
+                self._clamp()
+                status = TRACKING
+        if status == LOST:
+            self._coast()
+            quality = min(quality, self.lost_below * 0.99)
+        cov = self.C_ @ self.P_ @ self.C_.T
+        scalars["covariance_trace"] = float(np.trace(cov))
+        self.estimate_ = Estimate(self._box(), cov, float(np.clip(quality, 0.0, 1.0)), status, scalars)
+        return self.estimate_
+
+
+# ------------------------------------------------------------------ the measurer
+
+
+@dataclass
+class _FrameData:
+    """What ``measure`` computed, kept for ``learn``."""
+
+    region: sp.Region
+    labels: np.ndarray
+    features: np.ndarray
+    inliers: np.ndarray
+    scores: np.ndarray
+
+
+class MILMeasurer:
+    """Superpixels + Pegasos SVM + graph-cut inliers (the measurement side of MIL filtering).
+
+    Parameters
+    ----------
+    lam
+        Search region factor on the predicted centre's standard deviation (eq. 8; the paper fixes 3).
+    pad
+        Extra context around the predicted box, fraction of its size per side.
+    max_extra
+        Cap on ``lam * sigma`` as a fraction of the box size (bounds the region while lost).
+    object_pixels
+        The region is resampled so the box's ``sqrt(w h)`` spans about this many pixels (never upsampled).
+    superpixels_per_side
+        About this many superpixels across the box side.
+    slic_iterations, slic_ruler
+        SLIC k-means iterations and compactness.
+    positive_fraction
+        Area fraction inside the box for a positive (paper: 0.7).
+    negative_fraction
+        At most this fraction inside the box for a negative when relabelling.
+    gamma_max
+        Frames a training triple is kept (paper: 25).
+    update_every
+        Pegasos update period in frames (paper: 6).
+    svm_lam, svm_iter, svm_init_iter, svm_max_t, svm_batch
+        Pegasos regularisation, iterations per update, at bootstrap, step-counter
+        cap, and mini-batch size (None: the whole training set per step).
+    keep_initial
+        Keep the first frame's triples in the training set for ever (an anchor against drift).
+    bag_scale
+        The positive bag: superpixels whose centroid is inside the predicted box scaled by this.
+    cut_slope, cut_beta
+        Graph cut: slope of the SVM-score sigmoid in the unaries, weight of the pairwise terms.
+    feature_order
+        Frequencies of the chi-squared feature map.
+    min_inlier_fraction
+        Inlier area below this fraction of the box area counts as no measurement.
+    locate
+        ``"smoothed"``: the box goes where the smoothed inlier map peaks
+        (:func:`locate_inliers`); ``"centroid"``: centroid and extent of all
+        inliers (:func:`inlier_measurement`).
+    positive_margin
+        A relabelled positive must also score above this (no self-training on
+        superpixels the SVM does not already believe in).
+    outliers_negative
+        Label the cut's outliers inside the box negative when their score is negative (eq. 5).
+    size_coverage
+        The inlier extent measures the size only when the inliers cover at
+        least this fraction of the predicted box; otherwise the measured size
+        is the predicted one (no size information).
+    inlier_bonus, motion_weight
+        ``locate="window"``: evidence ``clip(score, -1, 1) + inlier_bonus * inlier``
+        and the weight of the squared displacement (:func:`locate_window`).
+    spatial_prior
+        Extra cost of an inlier label growing with the squared normalised
+        distance of the superpixel from the predicted centre (0: SVM scores only).
+    """
+
+    def __init__(self, *, lam: float = 3.0, pad: float = 0.6, max_extra: float = 1.0,
+                 object_pixels: float = 40.0, superpixels_per_side: float = 5.0, slic_iterations: int = 4,
+                 slic_ruler: float = 10.0, positive_fraction: float = 0.7, negative_fraction: float = 0.3,
+                 gamma_max: int = 25, update_every: int = 6, svm_lam: float = 1e-3, svm_iter: int = 40,
+                 svm_init_iter: int = 1000, svm_max_t: int | None = 2000, svm_batch: int | None = 256, keep_initial: bool = True,
+                 bag_scale: float = 1.3, cut_slope: float = 2.0, cut_beta: float = 1.0,
+                 feature_order: int = 1, min_inlier_fraction: float = 0.1, locate: str = "smoothed",
+                 spatial_prior: float = 0.0, inlier_bonus: float = 0.5, motion_weight: float = 0.1, size_coverage: float = 0.6, positive_margin: float = 0.0, outliers_negative: bool = True,
+                 rng: np.random.Generator | int | None = None) -> None:
+        self.lam = lam
+        self.pad = pad
+        self.max_extra = max_extra
+        self.object_pixels = object_pixels
+        self.superpixels_per_side = superpixels_per_side
+        self.slic_iterations = slic_iterations
+        self.slic_ruler = slic_ruler
+        self.positive_fraction = positive_fraction
+        self.negative_fraction = negative_fraction
+        self.gamma_max = gamma_max
+        self.update_every = update_every
+        self.svm_lam = svm_lam
+        self.svm_iter = svm_iter
+        self.svm_init_iter = svm_init_iter
+        self.svm_max_t = svm_max_t
+        self.svm_batch = svm_batch
+        self.keep_initial = keep_initial
+        self.bag_scale = bag_scale
+        self.cut_slope = cut_slope
+        self.cut_beta = cut_beta
+        self.feature_order = feature_order
+        self.min_inlier_fraction = min_inlier_fraction
+        self.locate = locate
+        self.spatial_prior = spatial_prior
+        self.inlier_bonus = inlier_bonus
+        self.motion_weight = motion_weight
+        self.size_coverage = size_coverage
+        self.positive_margin = positive_margin
+        self.outliers_negative = outliers_negative
+        self.rng = rng
+
+    # -- helpers --------------------------------------------------------
+
+    def _tic(self, name: str, start: float) -> float:
+        now = time.perf_counter()
+        self.timings_[name] += now - start
+        return now
+
+    def _superpixels(self, frame: Frame, center, size, sigma):
+        t0 = time.perf_counter()
+        size = np.maximum(np.asarray(size, float), 4.0)
+        extra = np.minimum(self.lam * np.asarray(sigma, float), self.max_extra * size)
+        want = sp.search_box(center, size, extra, pad=self.pad, lam=1.0)
+        scale = min(1.0, self.object_pixels / float(np.sqrt(size[0] * size[1])))
+        region = sp.cut_region(frame.image, want, scale=scale)
+        if region is None:
+            return None
+        side = float(np.sqrt(size[0] * size[1])) * region.scale
+        region_size = int(np.clip(round(side / self.superpixels_per_side), 4, 20))
+        labels = sp.slic_labels(region.image, region_size=region_size, ruler=self.slic_ruler,
+                                iterations=self.slic_iterations)
+        t0 = self._tic("superpixels", t0)
+        K = int(labels.max()) + 1
+        desc = sp.superpixel_descriptors(region.image, labels, K)
+        features = sp.chi2_feature_map(desc, order=self.feature_order)
+        self._tic("features", t0)
+        return region, labels, desc, features
+
+    def _add_triples(self, features: np.ndarray, labels: np.ndarray, t: int) -> None:
+        keep = labels != 0
+        if np.any(keep):
+            self.buffer_.append((features[keep], labels[keep], t))
+
+    def _train(self, n_iter: int) -> None:
+        t0 = time.perf_counter()
+        horizon = self.t_ - self.gamma_max
+        self.training_ = [(X, y, t) for X, y, t in self.training_ + self.buffer_ if t >= horizon]
+        self.buffer_ = []
+        sets = list(self.training_)
+        if self.keep_initial:
+            sets.append(self.initial_)
+        X = np.concatenate([s[0] for s in sets])
+        y = np.concatenate([s[1] for s in sets])
+        if np.any(y > 0) and np.any(y < 0):
+            self.svm_.partial_fit(X, y, n_iter=n_iter)
+        self._tic("svm", t0)
+
+    # -- Measurer protocol -----------------------------------------------
+
+    def initialize(self, frame: Frame, box: Box) -> None:
+        """Bootstrap the SVM from the first frame: >= 70% inside the box positive, the rest negative (sec. 2.1)."""
+        self.timings_ = defaultdict(float)
+        self.svm_ = PegasosSVM(lam=self.svm_lam, n_iter=self.svm_iter, max_t=self.svm_max_t,
+                               batch_size=self.svm_batch, rng=self.rng)
+        self.t_ = 0
+        self.buffer_: list = []
+        self.training_: list = []
+        self.last_: _FrameData | None = None
+        self.box_scale_ = float(np.sqrt(max(box.area, 1.0)))
+        out = self._superpixels(frame, box.center, box.size, np.zeros(2))
+        if out is None:
+            self.initial_ = (np.zeros((0, 1)), np.zeros(0), 0)
+            return
+        region, labels, desc, features = out
+        frac = sp.fraction_inside(labels, region.box_to_region(box))
+        y = np.where(frac >= self.positive_fraction, 1, -1)
+        if not np.any(y > 0):  # a box smaller than any superpixel: take the most-inside one
+            y[np.argmax(frac)] = 1
+        self.initial_ = (features, y, 0)
+        # calibrate h: the positives' centroid and extent against the init box
+        self.size_ratio_ = np.ones(2)
+        self.centre_offset_ = np.zeros(2)
+        rbox = region.box_to_region(box)
+        if self.locate == "centroid":
+            meas = inlier_measurement(labels, y > 0)
+        else:
+            meas = locate_inliers(labels, (y > 0).astype(float), np.array([rbox.w, rbox.h]), rbox.center)
+        if meas is not None:
+            self.size_ratio_ = np.clip(np.array([rbox.w, rbox.h]) / meas[1], 0.5, 2.0)
+            self.centre_offset_ = (rbox.center - meas[0]) / np.array([rbox.w, rbox.h])
+        self.training_ = [self.initial_]
+        self._train(self.svm_init_iter)
+        self.training_ = [] if self.keep_initial else self.training_
+
+    def measure(self, frame: Frame, prior: Estimate) -> Superpixels | None:
+        """Superpixels of the search region, SVM scores, graph-cut inliers and the inlier box."""
+        self.t_ += 1
+        self.last_ = None
+        sigma = np.zeros(2)
+        if prior.covariance is not None:
+            sigma = np.sqrt(np.maximum(np.diag(prior.covariance)[:2], 0.0))
+        out = self._superpixels(frame, prior.box.center, prior.box.size, sigma)
+        if out is None:
+            return None
+        region, labels, desc, features = out
+        t0 = time.perf_counter()
+        scores = self.svm_.decision_function(features)
+        t0 = self._tic("svm", t0)
+
+        K = len(scores)
+        area, centroid = sp.label_stats(labels, K)
+        region_box = region.box_to_region(prior.box)
+        bag_box = region.box_to_region(prior.box.scaled(self.bag_scale))
+        in_bag = ((centroid[:, 0] >= bag_box.x) & (centroid[:, 0] <= bag_box.x + bag_box.w)
+                  & (centroid[:, 1] >= bag_box.y) & (centroid[:, 1] <= bag_box.y + bag_box.h))
+        pairs, lengths = sp.adjacency(labels)
+        cut_scores = scores
+        if self.spatial_prior > 0:
+            rel = (centroid - region_box.center) / np.array([region_box.w, region_box.h]) * 2.0
+            cut_scores = scores - self.spatial_prior * np.sum(rel ** 2, axis=1)
+        inliers = select_inliers(cut_scores, desc, pairs, lengths, in_bag, slope=self.cut_slope,
+                                 beta=self.cut_beta, area=area)
+        self._tic("graphcut", t0)
+
+        box = None
+        quality = 0.0
+        expected = max(region_box.area, 1.0)
+        if self.locate == "centroid":
+            meas = inlier_measurement(labels, inliers)
+        elif self.locate == "window":
+            meas = None
+            if np.any(inliers):
+                evidence = np.clip(scores, -1.0, 1.0) + self.inlier_bonus * inliers
+                centre, peak = locate_window(labels, evidence, np.array([region_box.w, region_box.h]),
+                                             region_box.center, motion_weight=self.motion_weight)
+                part = inlier_measurement(labels, inliers)
+                meas = (centre, part[1], part[2]) if part is not None else None
+        else:
+            meas = locate_inliers(labels, inliers.astype(float), np.array([region_box.w, region_box.h]),
+                                  region_box.center)
+        if meas is not None:
+            centre, size, mass = meas
+            fraction = mass / expected
+            if fraction >= self.min_inlier_fraction:
+                margin = float(np.mean(scores[inliers]))
+                quality = float(min(1.0, fraction / 0.5) / (1.0 + np.exp(-3.0 * margin)))
+                quality = float(np.clip(quality * 2.0, 0.0, 1.0))
+                size = size * self.size_ratio_  # calibrated extent (see initialize)
+                coverage = mass / expected
+                if coverage < self.size_coverage:  # a partial inlier set does not measure the extent
+                    size = np.array([region_box.w, region_box.h])
+                if self.locate != "window":
+                    centre = centre + self.centre_offset_ * size
+                fx, fy = region.to_frame(centre[0], centre[1])
+                box = Box.from_center(float(fx), float(fy), size[0] / region.scale, size[1] / region.scale)
+        self.last_ = _FrameData(region, labels, features, inliers, scores)
+        stages = {
+            "superpixels": labels,
+            "svm_scores": scores[labels].astype(np.float32),
+            "inliers": inliers[labels].astype(np.uint8),
+        }
+        return Superpixels(labels=labels, features=features, scores=scores, inliers=inliers, box=box,
+                           quality=quality, search_region=region.box, stages=stages)
+
+    def learn(self, frame: Frame, posterior: Estimate) -> None:
+        """Relabel this frame's superpixels from the posterior (eq. 5) and update ``w`` every few frames.
+
+        Positives: inliers with at least ``positive_fraction`` of their area in
+        the posterior box; negatives: superpixels with at most
+        ``negative_fraction`` inside it.  Nothing is learned while lost.
+        """
+        data = self.last_
+        if data is not None and posterior.status == TRACKING:
+            frac = sp.fraction_inside(data.labels, data.region.box_to_region(posterior.box), len(data.scores))
+            y = np.zeros(len(frac), dtype=int)
+            y[(frac >= self.positive_fraction) & data.inliers & (data.scores > self.positive_margin)] = 1
+            y[frac <= self.negative_fraction] = -1
+            if self.outliers_negative:  # eq. 5: the cut's outliers inside the box are negatives
+                y[(frac > self.negative_fraction) & ~data.inliers & (data.scores < 0)] = -1
+            self._add_triples(data.features, y, self.t_)
+        if self.t_ % self.update_every == 0 and self.buffer_:
+            self._train(self.svm_iter)

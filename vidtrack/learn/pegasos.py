@@ -1,0 +1,145 @@
+"""Pegasos: primal estimated sub-gradient solver for the linear SVM.
+
+Shalev-Shwartz, Singer & Srebro, *Pegasos: Primal Estimated sub-GrAdient
+SOlver for SVM* (ICML 2007), the learner of *Multiple Instance Filtering*.
+It minimises::
+
+    f(w) = lambda/2 ||w||^2 + 1/m sum_i c_i max(0, 1 - y_i <w, x_i>)
+
+(``c_i`` optional class weights; a bias is learned as the weight of a
+constant feature ``bias_scale``, regularised like the others, as in the
+paper).  Iteration ``t`` takes a mini-batch ``A_t``, the step
+``eta_t = 1 / (lambda t)`` and::
+
+    A_t+ = {i in A_t : y_i <w, x_i> < 1}
+    w <- (1 - eta_t lambda) w + eta_t / |A_t| sum_{i in A_t+} c_i y_i x_i
+    w <- min(1, (1/sqrt(lambda)) / ||w||) w          # projection step
+
+The optimum lies in the ball ``||w|| <= 1/sqrt(lambda)`` (Pegasos, Thm. 1),
+so the projection never excludes it.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+
+def pegasos_step(w: np.ndarray, X: np.ndarray, y: np.ndarray, t: int, lam: float,
+                 weights: np.ndarray | None = None) -> np.ndarray:
+    """One Pegasos iteration on the mini-batch ``(X, y)`` at iteration count ``t >= 1``.
+
+    ``X`` ``(k, D)`` already holds the bias column; ``y`` in ``{-1, +1}``.
+    Returns the new ``w`` (input not modified).
+    """
+    eta = 1.0 / (lam * t)
+    margins = y * (X @ w)
+    active = margins < 1.0
+    coef = y[active] if weights is None else (y * weights)[active]
+    grad_data = coef @ X[active] if np.any(active) else np.zeros_like(w)
+    w = (1.0 - eta * lam) * w + (eta / len(y)) * grad_data  # w = (1 - eta lam) w + eta/|A| sum y x
+    norm = np.linalg.norm(w)
+    radius = 1.0 / np.sqrt(lam)
+    if norm > radius:  # projection onto {||w|| <= 1/sqrt(lam)}
+        w = w * (radius / norm)
+    return w
+
+
+def svm_objective(w: np.ndarray, X: np.ndarray, y: np.ndarray, lam: float,
+                  weights: np.ndarray | None = None) -> float:
+    """``lambda/2 ||w||^2 + 1/m sum c_i max(0, 1 - y_i <w, x_i>)`` (``X`` with bias column)."""
+    hinge = np.maximum(0.0, 1.0 - y * (X @ w))
+    if weights is not None:
+        hinge = hinge * weights
+    return float(0.5 * lam * w @ w + hinge.mean())
+
+
+def balanced_weights(y: np.ndarray) -> np.ndarray:
+    """Per-sample weights ``m / (2 m_class)``: both classes weigh the same in the loss."""
+    y = np.asarray(y)
+    pos = max(int(np.sum(y > 0)), 1)
+    neg = max(int(np.sum(y <= 0)), 1)
+    return np.where(y > 0, len(y) / (2.0 * pos), len(y) / (2.0 * neg))
+
+
+class PegasosSVM:
+    """Linear SVM trained incrementally with Pegasos (``partial_fit`` style).
+
+    Parameters
+    ----------
+    lam
+        Regularisation ``lambda``.
+    batch_size
+        Mini-batch size ``k`` (``None``: the whole set given to ``partial_fit``).
+    n_iter
+        Iterations per ``partial_fit`` call.
+    bias_scale
+        Value of the constant feature carrying the bias.
+    balanced
+        Weight the classes equally in the hinge loss.
+    max_t
+        Cap on the iteration counter, so the step size ``1/(lambda t)`` never
+        falls below ``1/(lambda max_t)`` and the model keeps adapting on a
+        long video (``None``: the plain Pegasos schedule).
+    rng
+        Generator, seed or None for the mini-batch sampling.
+    """
+
+    def __init__(self, *, lam: float = 1e-2, batch_size: int | None = None, n_iter: int = 20,
+                 bias_scale: float = 1.0, balanced: bool = True, max_t: int | None = None,
+                 rng: np.random.Generator | int | None = None) -> None:
+        self.lam = lam
+        self.batch_size = batch_size
+        self.n_iter = n_iter
+        self.bias_scale = bias_scale
+        self.balanced = balanced
+        self.max_t = max_t
+        self.rng = rng
+
+    def _augment(self, X: np.ndarray) -> np.ndarray:
+        X = np.asarray(X, dtype=float)
+        return np.hstack([X, np.full((len(X), 1), self.bias_scale)])
+
+    def partial_fit(self, X: np.ndarray, y: np.ndarray, classes=None, *, n_iter: int | None = None) -> "PegasosSVM":
+        """Run ``n_iter`` Pegasos iterations on ``(X, y)``, continuing from the current ``w``.
+
+        ``y`` in ``{-1, +1}`` (or ``{0, 1}``, mapped to ``{-1, +1}``).
+        """
+        X = np.asarray(X, dtype=float)
+        y = np.where(np.asarray(y) > 0, 1.0, -1.0)
+        if not hasattr(self, "coef_"):
+            self.coef_ = np.zeros(X.shape[1] + 1)
+            self.t_ = 0
+            self.rng_ = np.random.default_rng(self.rng)
+        if len(y) == 0:
+            return self
+        weights = balanced_weights(y) if self.balanced else None
+        k = len(y) if self.batch_size is None else min(self.batch_size, len(y))
+        full = self._augment(X) if k == len(y) else None
+        for _ in range(self.n_iter if n_iter is None else n_iter):
+            self.t_ += 1
+            t = self.t_ if self.max_t is None else min(self.t_, self.max_t)
+            if full is None:  # A_t: a random mini-batch of k samples
+                idx = self.rng_.choice(len(y), size=k, replace=False)
+                self.coef_ = pegasos_step(self.coef_, self._augment(X[idx]), y[idx], t, self.lam,
+                                          None if weights is None else weights[idx])
+            else:
+                self.coef_ = pegasos_step(self.coef_, full, y, t, self.lam, weights)
+        return self
+
+    def fit(self, X: np.ndarray, y: np.ndarray) -> "PegasosSVM":
+        """Train from scratch (forget any previous ``w``)."""
+        for name in ("coef_", "t_", "rng_"):
+            if hasattr(self, name):
+                delattr(self, name)
+        return self.partial_fit(X, y)
+
+    def decision_function(self, X: np.ndarray) -> np.ndarray:
+        """Signed scores ``<w, [x, bias_scale]>``, ``(K,)``."""
+        X = np.asarray(X, dtype=float)
+        return X @ self.coef_[:-1] + self.bias_scale * self.coef_[-1]
+
+    def objective(self, X: np.ndarray, y: np.ndarray) -> float:
+        """The (class-weighted) SVM objective of the current ``w`` on ``(X, y)``."""
+        y = np.where(np.asarray(y) > 0, 1.0, -1.0)
+        return svm_objective(self.coef_, self._augment(X), y, self.lam,
+                             balanced_weights(y) if self.balanced else None)

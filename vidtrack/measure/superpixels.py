@@ -1,0 +1,281 @@
+"""Superpixels of a search region, their descriptors and an additive-kernel feature map.
+
+The measurement components of *Multiple Instance Filtering* (Wnuk & Soatto)
+are the SLIC superpixels of a search region around the filter's prediction.
+Each superpixel gets a descriptor (colour histograms plus a texture cue),
+mapped through an explicit feature map of the chi-squared additive kernel
+(Vedaldi & Zisserman, *Efficient additive kernels via explicit feature maps*)
+so that a linear SVM on the mapped features approximates a chi-squared SVM.
+
+Everything here is a pure function of arrays; descriptors are computed for
+all superpixels at once with ``np.bincount`` over the label image.
+
+SLIC: OpenCV's ``ximgproc`` implementation measured about 4x faster than
+scikit-image's ``slic`` on a 120x140 region at the same number of
+superpixels (5.4 ms vs 21.6 ms, 5 iterations), so it is the one used.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import cv2
+import numpy as np
+
+from ..types import Box
+
+#: Histogram bins per block of the descriptor.
+LAB_BINS = (8, 6, 6)
+ORIENTATION_BINS = 8
+LBP_BINS = 10  # rotation-invariant uniform LBP(8, 1): 9 uniform codes + 1 "other"
+
+
+@dataclass(frozen=True)
+class Region:
+    """A search region cut out of a frame and resampled.
+
+    ``box`` is the region in frame pixels (integer-aligned, inside the
+    frame); ``scale`` maps frame pixels to region pixels
+    (``u = (x - box.x) * scale``); ``image`` ``(h, w, 3) uint8`` BGR.
+    """
+
+    box: Box
+    scale: float
+    image: np.ndarray
+
+    def to_frame(self, u: np.ndarray | float, v: np.ndarray | float):
+        """Region pixel coordinates -> frame coordinates."""
+        return self.box.x + np.asarray(u) / self.scale, self.box.y + np.asarray(v) / self.scale
+
+    def box_to_region(self, box: Box) -> Box:
+        """A frame box expressed in region pixels."""
+        return Box((box.x - self.box.x) * self.scale, (box.y - self.box.y) * self.scale,
+                   box.w * self.scale, box.h * self.scale)
+
+    def box_to_frame(self, box: Box) -> Box:
+        """A region box expressed in frame pixels."""
+        return Box(self.box.x + box.x / self.scale, self.box.y + box.y / self.scale,
+                   box.w / self.scale, box.h / self.scale)
+
+
+def search_box(center: np.ndarray, size: np.ndarray, sigma: np.ndarray, *, pad: float = 0.6,
+               lam: float = 3.0) -> Box:
+    """The search region around a predicted box (Wnuk & Soatto, eq. 8).
+
+    Half-extent per axis ``d/2 + pad * d + lam * sigma`` where ``sigma`` is
+    the prediction's centre standard deviation (``sqrt diag(C P C')``); the
+    paper fixes ``lam = 3``.  ``pad`` keeps a ring of background around the
+    box for negatives even when the filter is certain.
+    """
+    half = np.asarray(size, float) * (0.5 + pad) + lam * np.asarray(sigma, float)
+    c = np.asarray(center, float)
+    return Box(float(c[0] - half[0]), float(c[1] - half[1]), float(2 * half[0]), float(2 * half[1]))
+
+
+def cut_region(image: np.ndarray, box: Box, *, scale: float) -> Region | None:
+    """Crop ``box`` (clipped to the image, integer-aligned) and resize by ``scale``.
+
+    Parameters
+    ----------
+    image
+        ``(H, W, 3) uint8`` BGR frame.
+    box
+        Wanted region in frame pixels.
+    scale
+        Resampling factor (<= 1 shrinks).
+
+    Returns
+    -------
+    Region or None
+        None when the clipped region is smaller than 8x8 pixels.
+    """
+    H, W = image.shape[:2]
+    x0, y0 = int(np.floor(max(box.x, 0))), int(np.floor(max(box.y, 0)))
+    x1, y1 = int(np.ceil(min(box.x + box.w, W))), int(np.ceil(min(box.y + box.h, H)))
+    if x1 - x0 < 8 or y1 - y0 < 8:
+        return None
+    crop = image[y0:y1, x0:x1]
+    if scale != 1.0:
+        w = max(8, int(round((x1 - x0) * scale)))
+        h = max(8, int(round((y1 - y0) * scale)))
+        crop = cv2.resize(crop, (w, h), interpolation=cv2.INTER_AREA)
+        scale_x = w / (x1 - x0)
+    else:
+        crop = np.ascontiguousarray(crop)
+        scale_x = 1.0
+    return Region(Box(x0, y0, x1 - x0, y1 - y0), float(scale_x), crop)
+
+
+def slic_labels(image: np.ndarray, *, region_size: int = 8, ruler: float = 10.0, iterations: int = 4) -> np.ndarray:
+    """SLIC superpixels (Achanta et al.) of a BGR image, OpenCV ``ximgproc`` implementation.
+
+    Parameters
+    ----------
+    image
+        ``(h, w, 3) uint8`` BGR.
+    region_size
+        Average superpixel side in pixels.
+    ruler
+        Compactness (larger: more square superpixels).
+    iterations
+        k-means iterations.
+
+    Returns
+    -------
+    labels
+        ``(h, w) int32`` labels ``0 .. K-1``, every label used.
+    """
+    lab = cv2.cvtColor(image, cv2.COLOR_BGR2Lab)
+    lab = cv2.GaussianBlur(lab, (3, 3), 0)
+    sp = cv2.ximgproc.createSuperpixelSLIC(lab, cv2.ximgproc.SLIC, int(region_size), float(ruler))
+    sp.iterate(int(iterations))
+    sp.enforceLabelConnectivity(25)
+    labels = sp.getLabels()
+    # compact the label set (connectivity enforcement may leave gaps)
+    used, compact = np.unique(labels, return_inverse=True)
+    return compact.reshape(labels.shape).astype(np.int32)
+
+
+def _lbp_codes(grey: np.ndarray) -> np.ndarray:
+    """Rotation-invariant uniform LBP(8, 1) codes in ``0 .. 9`` (Ojala et al. 2002)."""
+    g = np.pad(grey.astype(np.int16), 1, mode="edge")
+    c = g[1:-1, 1:-1]
+    h, w = c.shape
+    offsets = [(-1, -1), (-1, 0), (-1, 1), (0, 1), (1, 1), (1, 0), (1, -1), (0, -1)]
+    bits = np.stack([(g[1 + dy:1 + dy + h, 1 + dx:1 + dx + w] >= c) for dy, dx in offsets]).astype(np.uint8)
+    ones = bits.sum(axis=0)
+    transitions = (bits != np.roll(bits, 1, axis=0)).sum(axis=0)
+    return np.where(transitions <= 2, ones, 9).astype(np.int64)
+
+
+def superpixel_descriptors(image: np.ndarray, labels: np.ndarray, n_labels: int | None = None) -> np.ndarray:
+    """Per-superpixel descriptor: Lab colour histograms plus texture histograms.
+
+    Blocks (each L1-normalised, so each is a distribution):
+    marginal L, a, b histograms (``LAB_BINS``); gradient-orientation histogram
+    weighted by gradient magnitude (``ORIENTATION_BINS``, the texture cue
+    that still works on grey sequences); rotation-invariant uniform LBP
+    histogram (``LBP_BINS``); and a 2-bin gradient-energy block
+    ``[e, 1 - e]`` with ``e`` the mean gradient magnitude squashed to [0, 1].
+
+    Parameters
+    ----------
+    image
+        ``(h, w, 3) uint8`` BGR.
+    labels
+        ``(h, w) int`` superpixel labels ``0 .. K-1``.
+
+    Returns
+    -------
+    descriptors
+        ``(K, D) float64`` with ``D = sum(LAB_BINS) + ORIENTATION_BINS + LBP_BINS + 2``,
+        every entry in [0, 1].
+    """
+    K = int(labels.max()) + 1 if n_labels is None else int(n_labels)
+    flat = labels.ravel().astype(np.int64)
+    area = np.bincount(flat, minlength=K).astype(float)
+    area = np.maximum(area, 1.0)
+    blocks = []
+
+    lab = cv2.cvtColor(image, cv2.COLOR_BGR2Lab).reshape(-1, 3)
+    for channel, bins in enumerate(LAB_BINS):
+        q = (lab[:, channel].astype(np.int64) * bins) >> 8
+        hist = np.bincount(flat * bins + q, minlength=K * bins).reshape(K, bins)
+        blocks.append(hist / area[:, None])
+
+    grey = cv2.cvtColor(image, cv2.COLOR_BGR2GRAY)
+    gx = cv2.Sobel(grey, cv2.CV_32F, 1, 0, ksize=3)
+    gy = cv2.Sobel(grey, cv2.CV_32F, 0, 1, ksize=3)
+    mag, ang = cv2.cartToPolar(gx, gy)
+    mag = mag.ravel().astype(float)
+    ob = np.minimum((ang.ravel() * (ORIENTATION_BINS / (2 * np.pi))).astype(np.int64), ORIENTATION_BINS - 1)
+    hist = np.bincount(flat * ORIENTATION_BINS + ob, weights=mag, minlength=K * ORIENTATION_BINS)
+    hist = hist.reshape(K, ORIENTATION_BINS)
+    total = hist.sum(axis=1, keepdims=True)
+    blocks.append(np.where(total > 1e-9, hist / np.maximum(total, 1e-9), 1.0 / ORIENTATION_BINS))
+
+    codes = _lbp_codes(grey).ravel()
+    hist = np.bincount(flat * LBP_BINS + codes, minlength=K * LBP_BINS).reshape(K, LBP_BINS)
+    blocks.append(hist / area[:, None])
+
+    energy = np.bincount(flat, weights=mag, minlength=K) / area
+    e = energy / (energy + 60.0)  # Sobel magnitude of a strong edge is a few hundred
+    blocks.append(np.stack([e, 1.0 - e], axis=1))
+    return np.concatenate(blocks, axis=1)
+
+
+def chi2_feature_map(X: np.ndarray, *, order: int = 1, period: float = 0.6) -> np.ndarray:
+    """Explicit feature map of the additive chi-squared kernel (Vedaldi & Zisserman 2010).
+
+    For ``k(x, y) = 2 x y / (x + y)`` with spectrum ``kappa(l) = sech(pi l)``,
+    each non-negative entry ``x`` maps to ``2 order + 1`` features::
+
+        sqrt(x L kappa(0)),
+        sqrt(2 x L kappa(n L)) cos(n L log x),  sqrt(2 x L kappa(n L)) sin(n L log x),  n = 1..order
+
+    so that ``<Psi(x), Psi(y)>`` approximates ``sum_i k(x_i, y_i)``.
+
+    Parameters
+    ----------
+    X
+        ``(K, D)`` non-negative descriptors.
+    order, period
+        Number of frequencies ``n`` and sampling period ``L``.
+
+    Returns
+    -------
+    ``(K, D (2 order + 1))`` float64.
+    """
+    X = np.asarray(X, dtype=float)
+    safe = np.maximum(X, 1e-12)
+    log_x = np.log(safe)
+    out = [np.sqrt(X * period)]  # kappa(0) = sech(0) = 1
+    for n in range(1, order + 1):
+        amp = np.sqrt(2.0 * X * period / np.cosh(np.pi * n * period))
+        out.append(amp * np.cos(n * period * log_x))
+        out.append(amp * np.sin(n * period * log_x))
+    return np.concatenate(out, axis=1)
+
+
+def label_stats(labels: np.ndarray, n_labels: int | None = None):
+    """Area ``(K,)``, centroid ``(K, 2)`` ``[u, v]`` of every superpixel (region pixels)."""
+    K = int(labels.max()) + 1 if n_labels is None else int(n_labels)
+    h, w = labels.shape
+    flat = labels.ravel()
+    area = np.bincount(flat, minlength=K).astype(float)
+    vv, uu = np.indices((h, w))
+    cu = np.bincount(flat, weights=uu.ravel(), minlength=K) / np.maximum(area, 1)
+    cv = np.bincount(flat, weights=vv.ravel(), minlength=K) / np.maximum(area, 1)
+    return area, np.stack([cu, cv], axis=1)
+
+
+def fraction_inside(labels: np.ndarray, box: Box, n_labels: int | None = None) -> np.ndarray:
+    """Fraction of each superpixel's area inside ``box`` (region pixels), ``(K,)``."""
+    K = int(labels.max()) + 1 if n_labels is None else int(n_labels)
+    h, w = labels.shape
+    x0, y0 = int(round(max(box.x, 0))), int(round(max(box.y, 0)))
+    x1, y1 = int(round(min(box.x + box.w, w))), int(round(min(box.y + box.h, h)))
+    area = np.maximum(np.bincount(labels.ravel(), minlength=K), 1)
+    if x1 <= x0 or y1 <= y0:
+        return np.zeros(K)
+    inside = np.bincount(labels[y0:y1, x0:x1].ravel(), minlength=K)
+    return inside / area
+
+
+def adjacency(labels: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Pairs of 4-adjacent superpixels and their shared boundary length.
+
+    Returns
+    -------
+    pairs
+        ``(E, 2) int`` with ``pairs[:, 0] < pairs[:, 1]``.
+    lengths
+        ``(E,)`` number of adjacent pixel pairs across each boundary.
+    """
+    a = np.concatenate([labels[:, :-1].ravel(), labels[:-1, :].ravel()]).astype(np.int64)
+    b = np.concatenate([labels[:, 1:].ravel(), labels[1:, :].ravel()]).astype(np.int64)
+    keep = a != b
+    lo, hi = np.minimum(a[keep], b[keep]), np.maximum(a[keep], b[keep])
+    K = int(labels.max()) + 1
+    codes, counts = np.unique(lo * K + hi, return_counts=True)
+    return np.stack([codes // K, codes % K], axis=1), counts.astype(float)

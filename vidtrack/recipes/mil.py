@@ -1,0 +1,34 @@
+"""Multiple Instance Filtering (Wnuk & Soatto): SLIC superpixels, Pegasos SVM and graph-cut inliers in a Kalman filter.
+
+``build(seed=..., **options)``: options naming a :class:`~vidtrack.filters.mil.MILMeasurer`
+parameter go to the measurer, those naming a
+:class:`~vidtrack.filters.mil.MILKalmanFilter` parameter to the filter.
+"""
+
+from __future__ import annotations
+
+import inspect
+
+from ..errors import UsageError
+from ..filters.mil import MILKalmanFilter, MILMeasurer
+from ..tracker import Recipe, Tracker
+
+
+def _params(cls) -> set[str]:
+    return {p for p in inspect.signature(cls.__init__).parameters if p not in ("self", "rng")}
+
+
+def build_mil(seed=None, **options) -> Tracker:
+    measurer_keys, filter_keys = _params(MILMeasurer), _params(MILKalmanFilter)
+    unknown = set(options) - measurer_keys - filter_keys
+    if unknown:
+        raise UsageError(f"filter mil does not take option(s) {', '.join(sorted(unknown))}")
+    measurer = MILMeasurer(rng=seed, **{k: v for k, v in options.items() if k in measurer_keys})
+    filt = MILKalmanFilter(**{k: v for k, v in options.items() if k in filter_keys})
+    return Tracker(measurer, filt)
+
+
+RECIPES = {
+    "mil": Recipe("Multiple Instance Filtering: SLIC superpixels + Pegasos SVM + graph-cut inliers "
+                  "in a Kalman filter (Wnuk & Soatto)", build_mil),
+}
