@@ -71,6 +71,17 @@ _COLORMAPS = {"viridis": cv2.COLORMAP_VIRIDIS, "jet": cv2.COLORMAP_JET, "inferno
 # ----------------------------------------------------------------- pure image/point helpers
 
 
+_LUTS: dict[str, np.ndarray] = {}
+
+
+def colormap_lut(name: str) -> np.ndarray:
+    """The ``(256, 3) uint8`` BGR lookup table of OpenCV colormap ``name`` (cached)."""
+    if name not in _LUTS:
+        ramp = np.arange(256, dtype=np.uint8).reshape(256, 1)
+        _LUTS[name] = cv2.applyColorMap(ramp, _COLORMAPS[name]).reshape(256, 3)
+    return _LUTS[name]
+
+
 def nearest_resize(image: np.ndarray, max_side: int) -> np.ndarray:
     """Nearest-neighbour downscale of ``image`` ``(h, w[, c])`` so its longer side is at most ``max_side``.
 
@@ -176,9 +187,8 @@ def display_image(image: np.ndarray, *, max_side: int, colormap: str | None,
     if image.ndim == 3:
         image = image[..., 0]
     small = area_resize(float_to_uint8(image), max_side)
-    cmap = _COLORMAPS.get(colormap or "gray")
-    if cmap is not None:
-        small = cv2.applyColorMap(small, cmap)
+    if colormap is not None and _COLORMAPS.get(colormap) is not None:
+        small = colormap_lut(colormap)[small]   # = cv2.applyColorMap, without its per-call set-up
     return encode_jpeg(small, jpeg_quality), "image/jpeg", small.shape[:2]
 
 
@@ -256,10 +266,10 @@ BOX_STYLES = {
 }
 
 
-def _box_fields(box: Box) -> rr.Boxes2D:
-    """The per-frame part of a box (centre and half size); style is static."""
-    x, y, w, h = box.x, box.y, box.w, box.h
-    return rr.Boxes2D.from_fields(centers=[(x + w / 2.0, y + h / 2.0)], half_sizes=[(w / 2.0, h / 2.0)])
+def rgba32(rgb) -> int:
+    """``(r, g, b)`` -> rerun's packed ``0xRRGGBBAA`` colour (opaque)."""
+    r, g, b = (int(c) for c in rgb)
+    return (r << 24) | (g << 16) | (b << 8) | 0xFF
 
 
 # ----------------------------------------------------------------- the sink
@@ -267,6 +277,14 @@ def _box_fields(box: Box) -> rr.Boxes2D:
 
 class RerunSink:
     """Writes every :class:`TrackState` and its stages to a Rerun recording (``.rrd``).
+
+    Frames are JPEG-encoded as they come, but rows (frame, boxes, stage
+    images, points, scalars) are buffered per entity and sent as columns every
+    ``batch_frames`` frames and on :meth:`close`: one ``send_columns`` per
+    entity and batch costs far less than one ``log`` call per entity and frame.
+    Superpixel label images and status messages (rare) are logged directly.
+    ``close`` also runs after Ctrl-C (``run_tracker`` closes its sinks in a
+    ``finally``), so an interrupted run keeps every frame.
 
     Parameters
     ----------
@@ -296,6 +314,9 @@ class RerunSink:
         At most this many points per point stage per frame (the heaviest).
     point_radius
         Point radius range in pixels, from zero weight to the largest weight.
+    batch_frames
+        Buffered rows are sent every this many frames (and on close); a
+        spawned viewer lags by at most this many frames.
     application_id
         Rerun application id (recordings of one application share blueprints).
 
@@ -310,11 +331,11 @@ class RerunSink:
                  superpixels_every: int = 5, jpeg_quality: int = 75, stage_every: int = 1,
                  stage_max_side: int = 128, stage_jpeg_quality: int = 80, colormap: str | None = "viridis",
                  max_points: int = 300, point_radius: tuple[float, float] = (0.5, 4.0),
-                 application_id: str = "vidtrack") -> None:
+                 batch_frames: int = 30, application_id: str = "vidtrack") -> None:
         if path is None and not spawn:
             raise UsageError("a Rerun recording needs a file path or spawn=True")
-        if superpixels_every < 1 or stage_every < 1:
-            raise UsageError("superpixels_every and stage_every must be at least 1")
+        if superpixels_every < 1 or stage_every < 1 or batch_frames < 1:
+            raise UsageError("superpixels_every, stage_every and batch_frames must be at least 1")
         if not 1 <= jpeg_quality <= 100 or not 1 <= stage_jpeg_quality <= 100:
             raise UsageError("JPEG qualities must lie in 1..100")
         if colormap is not None and colormap not in _COLORMAPS:
@@ -331,16 +352,19 @@ class RerunSink:
         self.colormap = colormap
         self.max_points = int(max_points)
         self.point_radius = (float(point_radius[0]), float(point_radius[1]))
+        self.batch_frames = int(batch_frames)
         self.application_id = application_id
 
-        self._shown: set[str] = set()           # entities showing data of the previous frame
+        self._shown: set[str] = set()           # image/point entities showing data of the previous frame
         self._image_stages: list[str] = []      # image stage names seen, in order (blueprint)
         self._point_stages: list[str] = []
         self._blueprint_key: tuple | None = None
         self._last_status: str | None = None
-        self._estimate_rgb: tuple | None = None  # colour last logged on the estimate box
-        self._styled: set[str] = set()           # entities whose static style is logged
-        self._frames_written = 0
+        self._styled: set[str] = set()          # entities whose static style is logged
+        # Buffered rows per entity: path -> (kind, rows); a row is (frame, payload),
+        # payload None for an empty row that hides the entity from that frame on.
+        self._rows: dict[str, tuple[str, list[tuple[int, Any]]]] = {}
+        self._buffered = 0
         self._rec: rr.RecordingStream | None = None
         self._open()
 
@@ -377,16 +401,18 @@ class RerunSink:
         self._blueprint_key = self._layout_key()
 
     def close(self) -> None:
-        """Finish the recording: flush and write the footer, so the file is complete.
+        """Finish the recording: send buffered rows, flush, write the footer (the file is then complete).
 
         Safe to call twice; also called by ``run_tracker`` after Ctrl-C.
         """
-        rec, self._rec = self._rec, None
+        rec = self._rec
         if rec is None:
             return
         try:
+            self._send_buffered()
             rec.flush()
         finally:
+            self._rec = None
             rec.disconnect()  # drops the file sink, which writes the RRD footer
 
     def __enter__(self) -> "RerunSink":
@@ -433,11 +459,9 @@ class RerunSink:
             return
         if kind == "box":
             rgb, label, radius, order = BOX_STYLES[path]
-            colours = None if path == "video/boxes/estimate" else [rgb]   # the estimate's follows its status
-            style = rr.Boxes2D.from_fields(colors=colours, labels=[label], show_labels=False,
-                                           radii=[radius], draw_order=order)
+            style = rr.Boxes2D.from_fields(labels=[label], show_labels=False, radii=[radius], draw_order=order)
         elif kind == "frame":
-            style = rr.EncodedImage.from_fields(draw_order=-20.0)
+            style = rr.EncodedImage.from_fields(media_type="image/jpeg", draw_order=-20.0)
         elif kind == "points":
             style = rr.Points2D.from_fields(colors=[POINT_RGB.get(name, OTHER_POINT_RGB)], draw_order=30.0)
         elif kind == "labels":
@@ -449,38 +473,28 @@ class RerunSink:
 
     def write(self, frame: Frame, state: TrackState) -> None:
         """Log ``frame`` and ``state`` on timeline ``frame`` at ``state.index``."""
-        rec = self._rec
-        if rec is None:
+        if self._rec is None:
             raise OutputError(f"cannot write {self.path or 'to Rerun'}: the recording is closed")
-        rec.set_time("frame", sequence=int(state.index))
-        logged: set[str] = set()
-        kept: set[str] = set()
-
-        def log(path: str, archetype) -> None:
-            rec.log(path, archetype)
-            logged.add(path)
+        index = int(state.index)
+        self._rec.set_time("frame", sequence=index)
+        shown: set[str] = set()   # entities that show data from this frame on
 
         self._style("video/frame", "frame")
-        log("video/frame", rr.EncodedImage(contents=encode_jpeg(frame.image, self.jpeg_quality),
-                                           media_type="image/jpeg"))
-        if state.box is not None and state.box.is_valid():
-            rgb = LOST_RGB if state.status == "lost" else ESTIMATE_RGB
-            self._style("video/boxes/estimate", "box")
-            if rgb != self._estimate_rgb:
-                rec.log("video/boxes/estimate", rr.Boxes2D.from_fields(colors=[rgb]))
-                self._estimate_rgb = rgb
-            log("video/boxes/estimate", _box_fields(state.box))
-        gt = self.ground_truth.get(int(state.index))
-        for path, box in (("video/boxes/predicted", state.predicted), ("video/boxes/measured", state.measured),
-                          ("video/search_region", state.search_region), ("video/boxes/ground_truth", gt)):
+        self._row("video/frame", "frame", index, encode_jpeg(frame.image, self.jpeg_quality))
+        lost_rgb = LOST_RGB if state.status == "lost" else None
+        for path, box in (("video/boxes/estimate", state.box), ("video/boxes/predicted", state.predicted),
+                          ("video/boxes/measured", state.measured), ("video/search_region", state.search_region),
+                          ("video/boxes/ground_truth", self.ground_truth.get(index))):
             if box is not None and box.is_valid():
                 self._style(path, "box")
-                log(path, _box_fields(box))
+                rgb = lost_rgb if path == "video/boxes/estimate" and lost_rgb else BOX_STYLES[path][0]
+                self._row(path, "box", index, (box.as_array(), rgba32(rgb)))
+                shown.add(path)
 
         for name, value in state.stages.items():
-            self._log_stage(frame, state, entity_name(name), value, log, kept)
+            self._stage(frame, state, entity_name(name), value, shown)
 
-        log("filter/confidence", rr.Scalars(float(state.confidence)))
+        self._row("filter/confidence", "scalar", index, float(state.confidence))
         for name, value in state.scalars.items():
             if name == "confidence":
                 continue
@@ -488,26 +502,72 @@ class RerunSink:
                 number = float(value)
             except (TypeError, ValueError):
                 continue
-            log(f"filter/{entity_name(name)}", rr.Scalars(number))
+            self._row(f"filter/{entity_name(name)}", "scalar", index, number)
 
         self._log_status(state)
-        for path in sorted(self._shown - logged - kept):
-            if not path.startswith("filter/"):   # a missing scalar is a gap, not a clear
-                rec.log(path, rr.Clear(recursive=False))
-                if path == "video/boxes/estimate":
-                    self._estimate_rgb = None     # the clear removed its colour too
-        self._shown = logged | kept
+        for path in sorted(self._shown - shown):     # showed something last frame, nothing now
+            kind = self._rows[path][0] if path in self._rows else None
+            if kind is not None and kind != "labels":
+                self._row(path, kind, index, None)     # an empty row hides it
+            else:
+                self._rec.log(path, rr.Clear(recursive=False))
+        self._shown = shown
         self._update_blueprint()
-        self._frames_written += 1
+        self._buffered += 1
+        if self._buffered >= self.batch_frames:
+            self._send_buffered()
 
-    def _log_stage(self, frame: Frame, state: TrackState, name: str, value, log, kept: set[str]) -> None:
+    def _row(self, path: str, kind: str, index: int, payload) -> None:
+        """Queue one row of ``path`` (``payload`` None: an empty row)."""
+        self._rows.setdefault(path, (kind, []))[1].append((index, payload))
+
+    def _send_buffered(self) -> None:
+        """Send every entity's buffered rows as columns (one ``send_columns`` per entity)."""
+        rec = self._rec
+        for path, (kind, rows) in self._rows.items():
+            if not rows:
+                continue
+            frames = [r[0] for r in rows]
+            data = [r[1] for r in rows if r[1] is not None]
+            lengths = [0 if r[1] is None else 1 for r in rows]
+            if kind == "scalar":
+                columns = rr.Scalars.columns(scalars=np.array(data, dtype=np.float64)).partition(lengths)
+            elif kind == "frame":
+                columns = rr.EncodedImage.columns(blob=data).partition(lengths)
+            elif kind == "box":
+                boxes = np.array([d[0] for d in data], dtype=np.float32).reshape(-1, 4)
+                columns = rr.Boxes2D.columns(centers=boxes[:, :2] + boxes[:, 2:] / 2.0,
+                                             half_sizes=boxes[:, 2:] / 2.0,
+                                             colors=np.array([d[1] for d in data], dtype=np.uint32)
+                                             ).partition(lengths)
+            elif kind == "points":
+                lengths = [0 if r[1] is None else len(r[1][0]) for r in rows]
+                positions = np.concatenate([d[0] for d in data]) if data else np.zeros((0, 2), np.float32)
+                radii = np.concatenate([d[1] for d in data]) if data else np.zeros(0, np.float32)
+                columns = rr.Points2D.columns(positions=positions, radii=radii).partition(lengths)
+            elif kind == "image":
+                translations = np.array([d[2] for d in data], dtype=np.float32).reshape(-1, 3)
+                scales = np.array([d[3] for d in data], dtype=np.float32).reshape(-1, 3)
+                columns = [*rr.EncodedImage.columns(blob=[d[0] for d in data],
+                                                    media_type=[d[1] for d in data]).partition(lengths),
+                           *rr.Transform3D.columns(translation=translations, scale=scales).partition(lengths)]
+            else:  # pragma: no cover - labels are logged directly
+                raise AssertionError(kind)
+            rec.send_columns(path, indexes=[rr.TimeColumn("frame", sequence=frames)], columns=columns)
+            rows.clear()
+        self._buffered = 0
+
+    def _stage(self, frame: Frame, state: TrackState, name: str, value, shown: set[str]) -> None:
+        """Queue (or log) one stage; add its entity to ``shown`` when it shows something from now on."""
         path = f"stages/{name}"
         if value is None:
             return
         arr = value if isinstance(value, np.ndarray) else np.asarray(value)
+        index = int(state.index)
         if arr.ndim == 0:
             if arr.dtype.kind in "biuf":
-                log(path, rr.Scalars(float(arr)))
+                self._row(path, "scalar", index, float(arr))
+                shown.add(path)
             return
         kind = stage_kind(name, arr)
         if kind is None:
@@ -516,16 +576,17 @@ class RerunSink:
             if name not in self._point_stages:
                 self._point_stages.append(name)
             if arr.size == 0:
-                return  # nothing to show: cleared below as absent
+                return  # nothing to show: hidden as absent
             self._style(path, kind, name)
-            positions, radii = point_display(arr, max_points=self.max_points, radius_range=self.point_radius)
-            log(path, rr.Points2D.from_fields(positions=positions, radii=radii))
+            self._row(path, "points", index,
+                      point_display(arr, max_points=self.max_points, radius_range=self.point_radius))
+            shown.add(path)
             return
 
         every = self.superpixels_every if kind == "labels" else self.stage_every
-        if int(state.index) % every != 0:
+        if index % every != 0:
             if path in self._shown:
-                kept.add(path)   # rate-limited: keep showing the last one
+                shown.add(path)   # rate-limited: keep showing the last one
             return
         region = None if name.endswith("_full") else state.search_region
         if region is None or not region.is_valid():
@@ -533,18 +594,16 @@ class RerunSink:
         if name not in self._image_stages:
             self._image_stages.append(name)
         self._style(path, kind, name)
-        if kind == "labels":
+        shown.add(path)
+        if kind == "labels":   # every N-th frame only: logged directly
             labels = labels_for_segmentation(arr, self.stage_max_side)
-            shape = labels.shape
-            archetype = rr.SegmentationImage(labels)
-        else:
-            contents, media_type, shape = display_image(arr, max_side=self.stage_max_side,
-                                                        colormap=self.colormap,
-                                                        jpeg_quality=self.stage_jpeg_quality)
-            archetype = rr.EncodedImage(contents=contents, media_type=media_type)
+            translation, scale = region_transform(region, labels.shape)
+            self._rec.log(path, rr.Transform3D(translation=translation, scale=scale), rr.SegmentationImage(labels))
+            return
+        contents, media_type, shape = display_image(arr, max_side=self.stage_max_side, colormap=self.colormap,
+                                                    jpeg_quality=self.stage_jpeg_quality)
         translation, scale = region_transform(region, shape)
-        self._rec.log(path, rr.Transform3D(translation=translation, scale=scale))
-        log(path, archetype)
+        self._row(path, "image", index, (contents, media_type, translation, scale))
 
     def _log_status(self, state: TrackState) -> None:
         status = state.status
@@ -565,16 +624,19 @@ class RerunSink:
 
 
 def read_recording(path: str | Path) -> dict[str, list[int]]:
-    """Entity path -> sorted ``frame`` indices with data (``Clear`` rows excluded) in an ``.rrd`` file.
+    """Entity path -> sorted ``frame`` indices that show data, read from an ``.rrd`` file.
 
-    For tests and tools that check what a recording holds without a viewer.
-    Static entities map to an empty list.
+    Rows that only clear or hide an entity (``Clear``, an empty box list) do
+    not count.  Static-only entities map to an empty list.  For tests and tools
+    that check what a recording holds without a viewer.
 
     Raises
     ------
     OutputError
         When the file cannot be read as a Rerun recording.
     """
+    import pyarrow as pa
+    import pyarrow.compute as pc
     from rerun.chunk import RrdReader
 
     frames: dict[str, set[int]] = {}
@@ -587,17 +649,18 @@ def read_recording(path: str | Path) -> dict[str, list[int]]:
             seen = frames.setdefault(entity, set())
             if "frame" not in batch.schema.names:
                 continue
-            data_columns = [n for n in batch.schema.names
-                            if ":" in n and not n.startswith("Clear:") and not n.startswith("rerun.")]
-            if not data_columns:
-                continue
+            present = np.zeros(batch.num_rows, dtype=bool)
+            for name in batch.schema.names:
+                if ":" not in name or name.startswith(("Clear:", "rerun.")):
+                    continue
+                column = batch.column(name)
+                if pa.types.is_list(column.type) or pa.types.is_large_list(column.type):
+                    filled = pc.fill_null(pc.greater(pc.list_value_length(column), 0), False)
+                else:
+                    filled = pc.is_valid(column)
+                present |= np.asarray(filled.to_pylist(), dtype=bool)
             index = batch.column("frame").to_pylist()
-            present = np.zeros(len(index), dtype=bool)
-            for column in data_columns:
-                present |= ~np.asarray(batch.column(column).is_null().to_pylist(), dtype=bool)
             seen.update(int(i) for i, p in zip(index, present) if p and i is not None)
-    except OutputError:
-        raise
     except Exception as exc:
         raise OutputError(f"cannot read Rerun recording {path}: {str(exc).splitlines()[0] if str(exc) else exc}") from None
     return {entity: sorted(idx) for entity, idx in sorted(frames.items())}
