@@ -22,7 +22,7 @@ pytest.importorskip("rerun")
 from vidtrack.cli import main as cli_main
 from vidtrack.errors import OutputError, UsageError
 from vidtrack.run import run_tracker
-from vidtrack.sinks.rerun import (RerunSink, display_image, float_to_uint8, labels_for_segmentation,
+from vidtrack.sinks.rerun import (RerunSink, colormap_lut, display_image, float_to_uint8, labels_for_segmentation,
                                   nearest_resize, point_display, read_recording, region_transform,
                                   stage_kind)
 from vidtrack.types import Box, Frame, TrackState
@@ -92,7 +92,8 @@ def hand_states(rng: np.random.Generator):
 @pytest.fixture(scope="module")
 def hand_recording(tmp_path_factory) -> Path:
     path = tmp_path_factory.mktemp("rerun") / "sub" / "hand.rrd"   # missing folder is created
-    sink = RerunSink(path, filter_name="hand", ground_truth=GROUND_TRUTH, superpixels_every=5)
+    # batch_frames=5: rows cross batch boundaries (frames 0-4, 5-9, 10-11 sent at close)
+    sink = RerunSink(path, filter_name="hand", ground_truth=GROUND_TRUTH, superpixels_every=5, batch_frames=5)
     for frame, state in hand_states(np.random.default_rng(0)):
         sink.write(frame, state)
     sink.close()
@@ -137,6 +138,15 @@ def test_status_changes_are_a_text_log(hand_recording):
     out = rerun_cli("rrd", "print", "-vvv", "--entity", "/log/status", str(hand_recording))
     assert out.returncode == 0, out.stderr
     assert "lost" in out.stdout and "re-acquired" in out.stdout
+
+
+def test_default_blueprint_shows_frame_stages_and_plots(hand_recording):
+    out = rerun_cli("rrd", "print", "-vvv", str(hand_recording))
+    assert out.returncode == 0, out.stderr
+    for name in ("superpixels", "svm_scores", "inliers", "score_map", "backprojection", "my_stage"):
+        assert f"+ stages/{name}]" in out.stdout, name          # one overlay view per image stage
+    assert "+ stages/particles" in out.stdout and "+ video/**" in out.stdout   # the frame view
+    assert "TimeSeries" in out.stdout and "TextLog" in out.stdout         # view class identifiers
 
 
 def test_two_recordings_in_one_process_are_separate(tmp_path):
@@ -246,6 +256,11 @@ def test_float_to_uint8_ranges():
     assert float_to_uint8(np.array([[-1.0, 0.0, 1.0]])).tolist() == [[0, 128, 255]]
     assert float_to_uint8(np.array([[3.0, 5.0, np.nan]])).tolist() == [[0, 255, 0]]  # stretched
     assert float_to_uint8(np.full((2, 2), np.inf)).tolist() == [[0, 0], [0, 0]]
+
+
+def test_colormap_lut_matches_opencv():
+    image = np.random.default_rng(1).integers(0, 256, (30, 40)).astype(np.uint8)
+    assert np.array_equal(colormap_lut("viridis")[image], cv2.applyColorMap(image, cv2.COLORMAP_VIRIDIS))
 
 
 def test_region_transform_maps_array_corners_onto_region():

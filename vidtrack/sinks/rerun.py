@@ -31,7 +31,10 @@ ending in ``_full`` cover the whole frame).  Each is logged with a
 that region, so in frame coordinates it lies exactly where it was computed;
 the default blueprint shows each one over the frame.  An entity that had data
 on the previous frame but has none now (no measurement, a frame without
-ground truth) is cleared, so the viewer never shows a stale box or stage.
+ground truth) gets an empty row (or a ``Clear``), so the viewer never shows a
+stale box or stage; rate-limited stages (superpixels) keep showing the last one.
+Styles (colours, labels, draw order) are logged once as static data, so rows
+carry only geometry and pixels.  :func:`read_recording` reads a file back.
 """
 
 from __future__ import annotations
@@ -151,7 +154,7 @@ def encode_jpeg(image: np.ndarray, quality: int) -> bytes:
 
 def encode_png(image: np.ndarray) -> bytes:
     """PNG bytes of ``image`` ``(h, w)`` uint8 (lossless: masks)."""
-    ok, buf = cv2.imencode(".png", image, [cv2.IMWRITE_PNG_COMPRESSION, 6])
+    ok, buf = cv2.imencode(".png", image, [cv2.IMWRITE_PNG_COMPRESSION, 3])
     if not ok:
         raise ValueError("PNG encoding failed")
     return buf.tobytes()
