@@ -146,7 +146,7 @@ def test_default_blueprint_shows_frame_stages_and_plots(hand_recording):
     for name in ("superpixels", "svm_scores", "inliers", "score_map", "backprojection", "my_stage"):
         assert f"+ stages/{name}]" in out.stdout, name          # one overlay view per image stage
     assert "+ stages/particles" in out.stdout and "+ video/**" in out.stdout   # the frame view
-    assert "TimeSeries" in out.stdout and "TextLog" in out.stdout         # view class identifiers
+    assert "TimeSeries" in out.stdout                                     # the plots view class
 
 
 def test_two_recordings_in_one_process_are_separate(tmp_path):
