@@ -8,7 +8,9 @@ Online Learning-based Framework for Tracking" (UAI 2010): the same score map
   2-3, :mod:`vidtrack.filters.normalhedge`); actions are box centres and an
   action's loss is the clipped negative score of its box,
   ``l_o(x) = -q(s(x))``, ``q(s) = min(hi, max(s, lo))`` (the seed's clipped
-  loss, Section 5);
+  loss, Section 5); the dynamics function is ``F(x) = x + v`` with ``v`` a
+  running average of the estimate's displacement (``velocity_gain = 0``
+  gives the seed's identity ``F``);
 * :class:`ParticleBoxFilter` -- a SIR particle filter
   (:mod:`vidtrack.filters.particle`) with a Gaussian random walk and the
   likelihood ``p(s | x) ∝ exp(-(1 - s(x))^2 / 2 sigma_s^2)`` (the score of
