@@ -260,7 +260,8 @@ def test_float_to_uint8_ranges():
 
 def test_colormap_lut_matches_opencv():
     image = np.random.default_rng(1).integers(0, 256, (30, 40)).astype(np.uint8)
-    assert np.array_equal(colormap_lut("viridis")[image], cv2.applyColorMap(image, cv2.COLORMAP_VIRIDIS))
+    assert np.array_equal(cv2.applyColorMap(image, colormap_lut("viridis")),
+                          cv2.applyColorMap(image, cv2.COLORMAP_VIRIDIS))
 
 
 def test_region_transform_maps_array_corners_onto_region():
