@@ -550,6 +550,14 @@ def conditional_from_counts(counts: np.ndarray, prior: np.ndarray | None = None,
     return num / np.maximum(den, _TINY)
 
 
+def diagonal_history(m: np.ndarray, order: int) -> np.ndarray:
+    """History tensor ``W[x_k, x_{k-1}, ...]`` with all positions equal, distributed as ``m`` (zero velocity)."""
+    W = np.zeros((len(m),) * order)
+    idx = np.arange(len(m))
+    W[(idx,) * order] = m
+    return normalized(W)
+
+
 def random_walk_displacement(basis: ChannelBasis, sigma: float, order: int) -> np.ndarray:
     """Displacement conditional of a random walk: ``d_k ~ N(0, sigma²)`` whatever the history."""
     p = encode_density(lambda d: np.exp(-0.5 * (d / sigma) ** 2) / (sigma * np.sqrt(2 * np.pi)), basis)
@@ -638,11 +646,19 @@ class CBTFilter:
     tracking (``prior_weight`` pseudo-counts), or is given by ``model``.
 
     Likelihood ``h``: ``clutter + sum_d s_d b(x - x_d) b(y - y_d)`` with
-    ``s_d = exp((score_d - 1) / score_temperature)``.
+    ``s_d = exp((score_d - top) / score_temperature)``, ``top`` the frame's
+    best score (``relative_scores``) or 1.  Relative scores keep the
+    measurement informative when the detector's scores drop everywhere
+    (appearance change); the confidence still uses the absolute scores.
+    Defaults were chosen on the seven shared benchmark sequences (no
+    separate validation set).
 
     Confidence: the posterior mass of the decoded mode's ``3x3`` window
     (scaled so ``mass_full`` counts as 1) times the best detection score
-    within a quarter box of it; ``lost`` below ``lost_below``.
+    within a quarter box of it; ``lost`` below ``lost_below``.  While lost,
+    the history is reset to the current position (``coast_when_lost``: the
+    learned velocity is forgotten so the box does not run off during an
+    occlusion) and nothing is learned.
     """
 
     order: int = 2
@@ -651,17 +667,19 @@ class CBTFilter:
     max_spacing: float = 12.0
     d_channels: int = 15
     d_range: float = 0.6
-    prior_sigma: float = 0.08
+    prior_sigma: float = 0.12
     prior_weight: float = 20.0
     relearn_every: int = 10
     clutter: float = 0.02
-    score_temperature: float = 0.1
+    score_temperature: float = 0.05
     product: str = "plain"
     learn_online: bool = True
-    lost_below: float = 0.3
+    lost_below: float = 0.2
     mass_full: float = 0.5
     model: CBTModel | None = None
     mode_threshold: float = 0.05
+    coast_when_lost: bool = True
+    relative_scores: bool = True
 
     def initialize(self, box: Box, frame: Frame | None = None) -> None:
         width = frame.width if frame is not None else int(box.x + 4 * box.w)
@@ -722,7 +740,9 @@ class CBTFilter:
         """``h(z)`` over the current-centre channel grid ``(C_x, C_y)``."""
         h = np.full((self.bases_[0].n, self.bases_[1].n), self.clutter)
         if len(detections.points):
-            s = np.exp((np.asarray(detections.scores, float) - 1.0) / self.score_temperature)
+            scores = np.asarray(detections.scores, float)
+            top = float(scores.max()) if self.relative_scores else 1.0
+            s = np.exp((scores - top) / self.score_temperature)
             ex = encode_unclipped(detections.points[:, 0], self.bases_[0])
             ey = encode_unclipped(detections.points[:, 1], self.bases_[1])
             h = h + np.einsum("m,mi,mj->ij", s, ex, ey)
@@ -762,6 +782,8 @@ class CBTFilter:
                 self._learn()
         else:
             self.history_ = [centre.copy()]  # a gap breaks the displacement chain
+            if self.coast_when_lost:  # forget the velocity: the history repeats the current position
+                self.W_ = [diagonal_history(W.reshape(W.shape[0], -1).sum(axis=1), self.order) for W in self.W_]
         self.estimate_ = Estimate(self._box_at(centre), None, confidence, status, scalars)
         return self.estimate_
 

@@ -1,0 +1,38 @@
+"""Channel-Based Tracking on video: ``--filter cbt``.
+
+Detections per frame are the local maxima of an NCC sliding detector's score
+map (clutter included, no association; :mod:`vidtrack.measure.detections`);
+:class:`~vidtrack.filters.channels.CBTFilter` tracks the box centre from them
+on a cos² channel grid over the frame ("Learning Object Tracking in Image
+Sequences", Felsberg & Larsson).  Its motion model is learned online from its
+own estimates, or loaded from ``--model FILE`` (a ``.npz`` written by
+``vidtrack learn cbt``).
+"""
+
+from __future__ import annotations
+
+from ..filters.channels import CBTFilter, CBTModel
+from ..measure.detections import DetectionMeasurer
+from ..tracker import Recipe, Tracker
+
+_MEASURER_OPTIONS = ("margin", "lost_margin", "nms_fraction", "min_score", "max_detections")
+
+
+def build_cbt(seed=None, model=None, **options) -> Tracker:
+    """CBT tracker; ``model`` is the path of a learned model file (or a :class:`CBTModel`)."""
+    from ..errors import UsageError
+
+    measurer_options = {k: options.pop(k) for k in list(options) if k in _MEASURER_OPTIONS}
+    unknown = [k for k in options if k not in CBTFilter.__dataclass_fields__]
+    if unknown:
+        raise UsageError(f"cbt does not take option(s) {', '.join(sorted(unknown))}")
+    if model is not None and not isinstance(model, CBTModel):
+        model = CBTModel.load(model)
+    if model is not None:
+        options.setdefault("order", model.order)
+    return Tracker(DetectionMeasurer(**measurer_options), CBTFilter(model=model, **options))
+
+
+RECIPES = {
+    "cbt": Recipe("Channel-Based Tracking (cos² channels, learned motion) on NCC detections", build_cbt),
+}
