@@ -247,6 +247,35 @@ def test_size_budget_on_a_real_320x240_sequence(tmp_path):
     assert out.stat().st_size / n < 60 * 1024
 
 
+#: Entities each paper filter must show (issue 8), beyond those every filter shows.
+FILTER_ENTITIES = {
+    "mil": {"stages/superpixels", "stages/svm_scores", "stages/inliers", "filter/inlier_count",
+            "filter/svm_margin"},
+    "nh": {"stages/score_map", "stages/particles", "filter/c_t", "filter/live_actions"},
+    "svk": {"filter/F_00", "filter/Q_00", "filter/innovation"},
+    "cbt": {"stages/score_map", "stages/detections"},
+}
+COMMON_ENTITIES = {"video/frame", "video/boxes/estimate", "video/boxes/predicted", "video/search_region",
+                   "filter/confidence", "log/status"}
+
+
+@pytest.mark.skipif(not (SEQUENCES / "David/img").is_dir(), reason="shared sequences missing")
+@pytest.mark.parametrize("name", sorted(FILTER_ENTITIES))
+def test_paper_filters_record_their_stages(tmp_path, name):
+    from vidtrack.tracker import registry
+
+    if name not in registry():
+        pytest.skip(f"{name} is not registered in this build")
+    out = tmp_path / f"{name}.rrd"
+    n = 12   # superpixels are logged on frames 5 and 10
+    assert cli_main([str(SEQUENCES / "David/img"), "--init-box", "122,58,75,97", "--filter", name,
+                     "--rerun", str(out), "--max-frames", str(n), "-q"]) == 0
+    verify(out)
+    missing = (COMMON_ENTITIES | FILTER_ENTITIES[name]) - stats_entities(out)
+    assert not missing, missing
+    assert read_recording(out)["video/frame"] == list(range(n))
+
+
 # ---------------------------------------------------------------- pure helpers
 
 
