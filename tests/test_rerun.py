@@ -207,6 +207,35 @@ def test_ctrl_c_mid_run_leaves_a_complete_recording(tmp_path):
     assert read_recording(path)["video/frame"] == list(range(17))
 
 
+def test_ctrl_c_inside_the_sink_leaves_no_half_frame(tmp_path, monkeypatch):
+    import vidtrack.sinks.rerun as sink_module
+
+    real = sink_module.display_image
+
+    def interrupt_on_frame_9(image, **kw):
+        if image.shape == (20, 20) and image[0, 0] == 9:
+            raise KeyboardInterrupt     # Ctrl-C while the sink encodes frame 9's stage
+        return real(image, **kw)
+
+    class Tracker(_InterruptedTracker):
+        def step(self, frame):
+            state = super().step(frame)
+            return TrackState(state.index, state.box, 0.8, "tracking", search_region=state.search_region,
+                              stages={"backprojection": np.full((20, 20), frame.index, np.uint8)})
+
+    monkeypatch.setattr(sink_module, "display_image", interrupt_on_frame_9)
+    path = tmp_path / "interrupted.rrd"
+    sink = RerunSink(path, filter_name="fake")
+    frames = (Frame(i, np.full((60, 80, 3), 10 * i, np.uint8)) for i in range(50))
+    result = run_tracker(Tracker(stop=99), frames, Box(10, 10, 20, 20), [sink])
+    assert result.interrupted and result.frames == 9
+    verify(path)
+    recorded = read_recording(path)
+    assert recorded["video/frame"] == list(range(9))          # frame 9 was not half logged
+    assert recorded["video/boxes/estimate"] == list(range(9))
+    assert recorded["stages/backprojection"] == list(range(1, 9))
+
+
 def _write_synthetic_video(folder: Path, n: int) -> None:
     folder.mkdir()
     for i in range(n):

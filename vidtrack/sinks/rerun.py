@@ -368,6 +368,7 @@ class RerunSink:
         self._blueprint_key: tuple | None = None
         self._last_status: str | None = None
         self._styled: set[str] = set()          # entities whose static style is logged
+        self._pending: list[tuple[str, str, Any]] = []   # this frame's actions, committed at its end
         # Buffered rows per entity: path -> (kind, rows); a row is (frame, payload),
         # payload None for an empty row that hides the entity from that frame on.
         self._rows: dict[str, tuple[str, list[tuple[int, Any]]]] = {}
@@ -462,7 +463,7 @@ class RerunSink:
         Frames then carry only geometry and pixels (smaller and faster); entities
         get a style only when first used, so a recording lists only what it shows.
         """
-        if path in self._styled:
+        if path in self._styled or any(item[1] == path for item in self._pending if item[0] == "style"):
             return
         if kind == "box":
             rgb, label, radius, order = BOX_STYLES[path]
@@ -475,15 +476,16 @@ class RerunSink:
             style = rr.SegmentationImage.from_fields(opacity=0.6, draw_order=-10.0)
         else:
             style = rr.EncodedImage.from_fields(draw_order=-10.0)
-        self._rec.log(path, style, static=True)
-        self._styled.add(path)
+        self._pending.append(("style", path, (style,)))
 
     def write(self, frame: Frame, state: TrackState) -> None:
         """Log ``frame`` and ``state`` on timeline ``frame`` at ``state.index``."""
         if self._rec is None:
             raise OutputError(f"cannot write {self.path or 'to Rerun'}: the recording is closed")
         index = int(state.index)
-        self._rec.set_time("frame", sequence=index)
+        # Everything this frame logs is prepared first and committed at the end, so a
+        # Ctrl-C while preparing leaves no half-logged frame in the recording.
+        self._pending = []
         shown: set[str] = set()   # entities that show data from this frame on
 
         self._style("video/frame", "frame")
@@ -511,22 +513,40 @@ class RerunSink:
                 continue
             self._row(f"filter/{entity_name(name)}", "scalar", index, number)
 
-        self._log_status(state)
+        status = self._status_message(state)
         for path in sorted(self._shown - shown):     # showed something last frame, nothing now
             kind = self._rows[path][0] if path in self._rows else None
             if kind is not None and kind != "labels":
                 self._row(path, kind, index, None)     # an empty row hides it
             else:
-                self._rec.log(path, rr.Clear(recursive=False))
+                self._log(path, rr.Clear(recursive=False))
+
+        # commit
+        self._rec.set_time("frame", sequence=index)
+        for action, path, payload in self._pending:
+            if action == "row":
+                kind, index_, data = payload
+                self._rows.setdefault(path, (kind, []))[1].append((index_, data))
+            elif action == "style":
+                self._rec.log(path, *payload, static=True)
+                self._styled.add(path)
+            else:
+                self._rec.log(path, *payload)
+        self._pending = []
         self._shown = shown
+        self._last_status = status
         self._update_blueprint()
         self._buffered += 1
         if self._buffered >= self.batch_frames:
             self._send_buffered()
 
     def _row(self, path: str, kind: str, index: int, payload) -> None:
-        """Queue one row of ``path`` (``payload`` None: an empty row)."""
-        self._rows.setdefault(path, (kind, []))[1].append((index, payload))
+        """Queue one row of ``path`` (``payload`` None: an empty row), sent with the next batch."""
+        self._pending.append(("row", path, (kind, index, payload)))
+
+    def _log(self, path: str, *archetypes) -> None:
+        """Log ``archetypes`` at ``path`` directly (at this frame's commit)."""
+        self._pending.append(("log", path, archetypes))
 
     def _send_buffered(self) -> None:
         """Send every entity's buffered rows as columns (one ``send_columns`` per entity)."""
@@ -605,26 +625,27 @@ class RerunSink:
         if kind == "labels":   # every N-th frame only: logged directly
             labels = labels_for_segmentation(arr, self.stage_max_side)
             translation, scale = region_transform(region, labels.shape)
-            self._rec.log(path, rr.Transform3D(translation=translation, scale=scale), rr.SegmentationImage(labels))
+            self._log(path, rr.Transform3D(translation=translation, scale=scale), rr.SegmentationImage(labels))
             return
         contents, media_type, shape = display_image(arr, max_side=self.stage_max_side, colormap=self.colormap,
                                                     jpeg_quality=self.stage_jpeg_quality)
         translation, scale = region_transform(region, shape)
         self._row(path, "image", index, (contents, media_type, translation, scale))
 
-    def _log_status(self, state: TrackState) -> None:
+    def _status_message(self, state: TrackState) -> str:
+        """Queue a TextLog at ``log/status`` on the first frame and on status changes; return the status."""
         status = state.status
         if self._last_status is None:
-            text = f"frame {state.index}: {self.filter_name} starts {status} at {state.box}"
-            self._rec.log("log/status", rr.TextLog(text, level="INFO"))
+            self._log("log/status", rr.TextLog(f"frame {state.index}: {self.filter_name} starts {status} "
+                                               f"at {state.box}", level="INFO"))
         elif status != self._last_status:
             if status == "lost":
                 text = f"frame {state.index}: lost (confidence {state.confidence:.2f}), predicting {state.box}"
-                self._rec.log("log/status", rr.TextLog(text, level="WARN"))
+                self._log("log/status", rr.TextLog(text, level="WARN"))
             else:
                 text = f"frame {state.index}: re-acquired at {state.box} (confidence {state.confidence:.2f})"
-                self._rec.log("log/status", rr.TextLog(text, level="INFO"))
-        self._last_status = status
+                self._log("log/status", rr.TextLog(text, level="INFO"))
+        return status
 
 
 # ----------------------------------------------------------------- reading back
