@@ -143,8 +143,9 @@ def encode_nd(points, bases: Sequence[ChannelBasis], weights=None) -> np.ndarray
 def encode_density(pdf, basis: ChannelBasis, *, samples_per_channel: int = 64) -> np.ndarray:
     """Channel vector ``w_i = integral p(x) b(x - x_i) dx`` of a density callable ``pdf(x)`` (eq. 9/12).
 
-    Integrated numerically over the basis range extended by 1.5 channels; the
-    result is normalised to sum to the mass the density puts in that range.
+    Integrated numerically (``samples_per_channel`` points per channel) over
+    the basis range extended by 1.5 channels; the result sums to the mass the
+    density puts in that range (the basis is a partition of unity).
     """
     t = np.linspace(-0.5, basis.n - 0.5, samples_per_channel * basis.n + 1)
     x = basis.from_channel(t)
@@ -576,10 +577,11 @@ def position_conditional(D: np.ndarray, d_basis: ChannelBasis, pos_basis: Channe
     C = pos_basis.n
     n = D.ndim
     diffs = np.arange(-(C - 1), C) * pos_basis.spacing / scale
-    E = encode_unclipped(diffs, d_basis)  # (2C-1, Cd)
+    E_next = encode_unclipped(diffs, d_basis)  # (2C-1, Cd): a jump beyond the model's range is impossible
+    E_cond = encode(diffs, d_basis)  # a history beyond it conditions like the largest one modelled
     M = D
-    for _ in range(n):  # contract every displacement axis with E (axis order is kept by rolling)
-        M = np.tensordot(M, E, axes=([0], [1]))
+    for j in range(n):  # contract every displacement axis (each contraction appends its axis at the end)
+        M = np.tensordot(M, E_next if j == 0 else E_cond, axes=([0], [1]))
     idx = np.indices((C,) * (n + 1))
     keys = tuple(idx[j] - idx[j + 1] + C - 1 for j in range(n))
     G = M[keys] + 1e-9
@@ -622,7 +624,8 @@ class CBTModel:
         except FileNotFoundError:
             raise UsageError(f"--model {path}: no such file") from None
         except Exception as exc:  # zip errors, missing keys, bad values
-            raise UsageError(f"--model {path}: not a CBT model file ({type(exc).__name__}: {exc})") from None
+            raise UsageError(f"--model {path}: not a CBT model file (expected a .npz written by "
+                             f"'vidtrack learn cbt'; {type(exc).__name__})") from None
         if Dx.shape != Dy.shape or Dx.ndim < 1 or any(s != basis.n for s in Dx.shape) \
                 or not (np.all(np.isfinite(Dx)) and np.all(np.isfinite(Dy))):
             raise UsageError(f"--model {path}: inconsistent CBT model arrays")
