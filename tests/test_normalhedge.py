@@ -138,3 +138,21 @@ def test_tracker_class_follows_a_moving_target():
         errors.append(abs(estimate[0] - target))
     assert np.mean(errors[-50:]) < 2.0
     assert tracker.c > 0 and 0 < tracker.live_actions <= 100
+
+
+def test_pruning_resamples_lagging_actions_that_exact_algorithm_keeps():
+    # Noise-free equal losses: no regret changes sign, so Algorithm 2 deletes nothing, but
+    # action 0's (old, small) regret gives it a negligible weight: pruning re-samples it.
+    states = np.array([[0.0], [10.0], [10.5], [9.5]])
+    regrets = np.array([0.05, 5.0, 5.0, 5.0])
+    prev = normalhedge_weights(regrets)
+
+    def losses(s):
+        return np.ones(s.shape[:-1])
+
+    exact = nh_tracking_step(states, regrets, prev, losses, np.random.default_rng(0), alpha=0.3, sigma_star=1.0)
+    pruned = nh_tracking_step(states, regrets, prev, losses, np.random.default_rng(0), alpha=0.3, sigma_star=1.0,
+                              prune_below=0.3)
+    assert not exact["deleted"].any() and exact["regrets"][0] > 0
+    assert pruned["deleted"][0] and not pruned["deleted"][1:].any()
+    assert abs(pruned["states"][0, 0] - 10.0) < 5.0

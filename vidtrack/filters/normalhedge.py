@@ -173,7 +173,7 @@ def resample_parents(regrets: np.ndarray, prev_weights: np.ndarray, rng: np.rand
 
 def nh_tracking_step(states: np.ndarray, regrets: np.ndarray, prev_weights: np.ndarray, losses_fn: LossFn,
                      rng: np.random.Generator, *, alpha: float, sigma_star: np.ndarray | float,
-                     dynamics: DynamicsFn | None = None) -> dict[str, np.ndarray]:
+                     dynamics: DynamicsFn | None = None, prune_below: float = 0.0) -> dict[str, np.ndarray]:
     """One round ``t`` of the NormalHedge tracking algorithm (Algorithms 2 and 3).
 
     Parameters
@@ -193,6 +193,13 @@ def nh_tracking_step(states: np.ndarray, regrets: np.ndarray, prev_weights: np.n
         diagonal square root), scalar or ``(d,)``.
     dynamics
         ``F``; identity when None.
+    prune_below
+        Also delete (and re-sample) actions whose NormalHedge weight is below
+        ``prune_below / N`` ("when its weight falls to 0", Section 4, read
+        numerically).  0 (default) is Algorithm 2 exactly: only ``R <= 0``.
+        With noise-free losses the discounted regret of an action that has
+        fallen behind decays towards 0 without ever reaching it, so without
+        pruning such actions are never re-sampled.
 
     Returns
     -------
@@ -205,8 +212,11 @@ def nh_tracking_step(states: np.ndarray, regrets: np.ndarray, prev_weights: np.n
     learner_loss = np.sum(prev_weights * losses, axis=-1, keepdims=True)   # l_A,t = sum w_{i,t-1} l_i,t
     new_regrets = (1.0 - alpha) * regrets + (learner_loss - losses)         # R_i,t
     deleted = new_regrets <= 0                                              # X = {i : R_i,t <= 0}
+    if prune_below > 0:
+        n = new_regrets.shape[-1]
+        deleted |= normalhedge_weights(new_regrets) < prune_below / n
     if np.any(deleted):
-        parents = resample_parents(new_regrets, prev_weights, rng)
+        parents = resample_parents(np.where(deleted, 0.0, new_regrets), prev_weights, rng)
         parent_states = np.take_along_axis(states, parents[..., None], axis=-2)
         noise = rng.standard_normal(states.shape) * np.asarray(sigma_star, dtype=float)
         proposed = parent_states + noise                                    # x_j ~ N(x_i, Sigma_*)
@@ -245,10 +255,14 @@ class NormalHedgeTracker:
         ``F``; identity when None.
     rng
         Seed or Generator.
+    prune_below
+        See :func:`nh_tracking_step` (0: Algorithm 2 exactly).
     """
 
     def __init__(self, n_actions: int = 100, alpha: float = 0.02, sigma_star: float | np.ndarray = 20.0,
-                 dynamics: DynamicsFn | None = None, rng: np.random.Generator | int | None = None) -> None:
+                 dynamics: DynamicsFn | None = None, rng: np.random.Generator | int | None = None,
+                 prune_below: float = 0.0) -> None:
+        self.prune_below = prune_below
         self.n_actions = n_actions
         self.alpha = alpha
         self.sigma_star = sigma_star
@@ -271,7 +285,8 @@ class NormalHedgeTracker:
     def step(self, losses_fn: LossFn) -> np.ndarray:
         """One round with the losses of this time step; returns ``x_{A,t}``."""
         out = nh_tracking_step(self.states_, self.regrets_, self.weights_, losses_fn, self.rng_,
-                               alpha=self.alpha, sigma_star=self.sigma_star, dynamics=self.dynamics)
+                               alpha=self.alpha, sigma_star=self.sigma_star, dynamics=self.dynamics,
+                               prune_below=self.prune_below)
         self.regrets_, self.weights_, self.log_c_ = out["regrets"], out["weights"], float(out["log_c"])
         self.current_states_ = out["states"]
         self.states_ = out["next_states"]

@@ -31,6 +31,9 @@ coordinates after every update.
 
 from __future__ import annotations
 
+import dataclasses
+
+import cv2
 import numpy as np
 from scipy.ndimage import map_coordinates
 
@@ -110,9 +113,13 @@ class NormalHedgeBoxFilter(_CentreBoxFilter):
 
     def __init__(self, n_actions: int = 100, alpha: float = 0.3, sigma_star: float = 0.15,
                  clip: tuple[float, float] = (-1.0, 1.0), outside_score: float = -1.0, lost_below: float = 0.35,
-                 radius: float = 0.15, velocity_gain: float = 0.2,
+                 radius: float = 0.15, velocity_gain: float = 0.2, coast_damping: float = 0.5,
+                 window: float = 0.0, prune_below: float = 0.3,
                  rng: np.random.Generator | int | None = None) -> None:
+        self.window = window
+        self.prune_below = prune_below
         self.velocity_gain = velocity_gain
+        self.coast_damping = coast_damping
         self.n_actions = n_actions
         self.alpha = alpha
         self.sigma_star = sigma_star
@@ -127,7 +134,8 @@ class NormalHedgeBoxFilter(_CentreBoxFilter):
         self.scale_ = box_scale(box)
         self.frame_size_ = None if frame is None else (frame.width, frame.height)
         sigma = self.sigma_star * self.scale_
-        self.core_ = NormalHedgeTracker(self.n_actions, self.alpha, sigma, dynamics=None, rng=self.rng)
+        self.core_ = NormalHedgeTracker(self.n_actions, self.alpha, sigma, dynamics=None, rng=self.rng,
+                                        prune_below=self.prune_below)
         init_rng = np.random.default_rng(self.core_.rng)
         self.core_.initialize(box.center + sigma * init_rng.standard_normal((self.n_actions, 2)))
         self.core_.rng_ = init_rng
@@ -148,10 +156,24 @@ class NormalHedgeBoxFilter(_CentreBoxFilter):
                                   self.estimate_.confidence, self.estimate_.status)
         return self.estimate_
 
-    def losses(self, smap: ScoreMap, states: np.ndarray) -> np.ndarray:
-        """``l_o(x_i) = -q(s(x_i))`` for action centres ``(N, 2)``."""
-        scores = score_at_centres(smap, states, self.outside_score)
-        return -np.clip(scores, self.clip[0], self.clip[1])
+    def loss_map(self, smap: ScoreMap) -> ScoreMap:
+        """The map of ``q(s)`` averaged over a square of half-side ``window`` box sizes.
+
+        The seed's loss sums the clipped measurements over the object's
+        extent; here the clipped score map is box-filtered over a window of
+        ``2 window`` box sizes, which widens the needle-like NCC peak of a
+        textured target into a basin the re-sampled actions can find.
+        """
+        q = np.clip(np.asarray(smap.scores, dtype=np.float32), self.clip[0], self.clip[1])
+        k = 2 * int(round(self.window * self.scale_ / smap.step)) + 1
+        if k > 1:
+            q = cv2.blur(q, (k, k), borderType=cv2.BORDER_REPLICATE)
+        return dataclasses.replace(smap, scores=q, stages={})
+
+    def losses(self, qmap: ScoreMap, states: np.ndarray) -> np.ndarray:
+        """``l_o(x_i) = -q(x_i)`` for action centres ``(N, 2)`` on a :meth:`loss_map`."""
+        outside = float(np.clip(self.outside_score, self.clip[0], self.clip[1]))
+        return -score_at_centres(qmap, states, outside)
 
     def update(self, measurement: Measurement | None) -> Estimate:
         prior = self.estimate_
@@ -159,8 +181,10 @@ class NormalHedgeBoxFilter(_CentreBoxFilter):
         scalars = {"c_t": self.core_.c, "live_actions": float(self.core_.live_actions)}
         self.stages_ = {"particles": np.column_stack([self.core_.states_, self.core_.weights_])}
         if not _usable(measurement, self.lost_below):
+            self.velocity_ = self.velocity_ * self.coast_damping   # coast to a stop, do not fly off
             return self._lost(prior, quality, scalars)
-        centre = self.core_.step(lambda s: self.losses(measurement, s))
+        qmap = self.loss_map(measurement)
+        centre = self.core_.step(lambda s: self.losses(qmap, s))
         centre = self._keep_in_frame(centre)
         if self.velocity_gain > 0:
             self.velocity_ = ((1 - self.velocity_gain) * self.velocity_
@@ -258,15 +282,18 @@ class GridBayesBoxFilter(_CentreBoxFilter):
     Parameters
     ----------
     cell
-        Grid spacing in box sizes (at least 1 pixel).
+        Grid spacing in box sizes (at least ``min_spacing`` pixels).
+    min_spacing
+        Smallest grid spacing, pixels (bounds the cost on small boxes).
     sigma_d, sigma_s, outside_score, lost_below, radius
         As in :class:`ParticleBoxFilter`.
     """
 
     def __init__(self, cell: float = 0.05, sigma_d: float = 0.05, sigma_s: float = 0.1,
                  outside_score: float = 0.0, lost_below: float = 0.35, radius: float = 0.15,
-                 rng: np.random.Generator | int | None = None) -> None:
+                 min_spacing: float = 2.0, rng: np.random.Generator | int | None = None) -> None:
         self.cell = cell
+        self.min_spacing = min_spacing
         self.sigma_d = sigma_d
         self.sigma_s = sigma_s
         self.outside_score = outside_score
@@ -280,7 +307,7 @@ class GridBayesBoxFilter(_CentreBoxFilter):
         width, height = (frame.width, frame.height) if frame is not None else (
             int(box.x + 3 * box.w) + 1, int(box.y + 3 * box.h) + 1)
         self.frame_size_ = None if frame is None else (width, height)
-        spacing = max(1.0, self.cell * self.scale_)
+        spacing = max(self.min_spacing, self.cell * self.scale_)
         self.xs_ = np.arange(0.0, width + spacing / 2, spacing)
         self.ys_ = np.arange(0.0, height + spacing / 2, spacing)
         sigma = max(self.sigma_d * self.scale_, 0.5 * spacing)
