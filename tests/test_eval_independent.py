@@ -68,7 +68,7 @@ def test_independent_scorer_agrees_on_synthetic_mil_and_otb(tmp_path):
                    frames_range=(4, 29), velocity=(2.0, 1.0))
     out = tmp_path / "r"
     assert vidtrack_main(["eval", str(data), "--filter", "kalman-cv,ms", "--out", str(out), "-q",
-                          "--no-plots"]) == 0
+                          "--no-plots", "--in-process"]) == 0
     checked = check_directory(out, data)
     assert len(checked) == 4
     for name, sequence, reported, independent in checked:

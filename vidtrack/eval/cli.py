@@ -28,9 +28,12 @@ def build_parser():
     parser.add_argument("--sequences", metavar="S1,S2", help="only these sequences (default: all)")
     parser.add_argument("--out", default="results", metavar="DIR", help="output folder (default: results)")
     parser.add_argument("--jobs", type=int, default=1, metavar="N",
-                        help="run sequences in N parallel processes (default 1)")
+                        help="run N jobs (tracker x sequence) in parallel processes (default 1)")
     parser.add_argument("--scheduler", metavar="ADDRESS",
                         help="send the jobs to this Dask distributed scheduler (e.g. tcp://host:8786)")
+    parser.add_argument("--in-process", action="store_true",
+                        help="run the jobs one by one in this process instead of a fresh process each "
+                             "(quicker start; opencv-mil's results then depend on the job order)")
     parser.add_argument("--force", action="store_true", help="re-run even when a matching result exists")
     parser.add_argument("--seed", type=int, default=0, help="tracker random seed (default 0)")
     parser.add_argument("--max-frames", type=int, metavar="N",
@@ -67,6 +70,8 @@ def main(argv: list[str]) -> int:
         raise UsageError(f"unknown filter {unknown[0]!r}; valid filters: {', '.join(sorted(recipes))}")
     if args.jobs < 1:
         raise UsageError("--jobs must be at least 1")
+    if args.in_process and (args.jobs > 1 or args.scheduler):
+        raise UsageError("--in-process runs one job at a time: drop --jobs or --scheduler")
     if args.max_frames is not None and args.max_frames < 1:
         raise UsageError("--max-frames must be at least 1")
     if args.rerun:
@@ -91,6 +96,7 @@ def main(argv: list[str]) -> int:
 
     evaluation = run_evaluation(sequences, filters, args.out, seed=args.seed, max_frames=args.max_frames,
                                 force=args.force, workers=args.jobs, scheduler=args.scheduler,
+                                isolate=not args.in_process,
                                 rerun_dir=args.rerun, quiet=args.quiet, on_output=report)
     json_path, md_path = write_summary(args.out, evaluation.summary)
     written = [json_path, md_path]

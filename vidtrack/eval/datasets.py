@@ -233,7 +233,7 @@ def load_sequence(folder: str | Path) -> BenchmarkSequence:
         row count matches neither the images nor the MIL frames range, or no
         annotated row.
     """
-    folder = Path(folder)
+    folder = Path(folder).resolve()  # absolute: jobs may run in other processes or machines
     name = folder.name
     images_dir = _image_folder(folder)
     if images_dir is None:
@@ -287,7 +287,7 @@ def find_sequences(dataset: str | Path) -> list[Path]:
     DatasetError
         When the path does not exist or holds no sequence.
     """
-    dataset = Path(dataset)
+    dataset = Path(dataset).resolve()
     if not dataset.is_dir():
         raise DatasetError(f"no such dataset folder: {dataset}")
     if is_sequence_folder(dataset):

@@ -14,9 +14,10 @@ calling process writes them, atomically, as::
                                     reports honest fps and reuses only matching runs
 
 Scoring reads only these files (DESIGN.md: evaluation goes through files).
-Because every job is seeded and pure, the files are the same whether the jobs
-ran serially, in local processes (``workers``) or on a Dask cluster
-(``scheduler``); only the measured fps differ.  On a multi-machine cluster the
+Every job is seeded and, by default, runs in a fresh interpreter
+(:mod:`vidtrack.eval.worker`), so the files are the same whether the jobs ran
+one after another, ``workers`` at a time or on a Dask cluster (``scheduler``);
+only the measured fps differ.  On a multi-machine cluster the
 dataset path must be readable by the workers (the result files are written by
 the caller, so the output folder need not be shared; ``--rerun`` recordings are
 written by the workers).
@@ -30,8 +31,9 @@ import os
 import traceback
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Callable, Iterable, Iterator
+from typing import Any, Callable, Iterator
 
+import cv2
 import numpy as np
 
 from ..errors import DatasetError, OutputError, UsageError
@@ -112,6 +114,9 @@ def track_job(job: Job) -> JobOutput:
 
     sequence = job.sequence
     start, stop = job.tracked_rows()
+    # OpenCV's trackers (opencv-mil samples patches) draw from OpenCV's per-thread global RNG:
+    # reset it so a job's result does not depend on which jobs ran before it in this process
+    cv2.setRNGSeed(job.seed)
     tracker = build_tracker(job.filter_name, seed=job.seed)
     source = ImageFolderSource(sequence.path, files=list(sequence.files[start:stop]))
     init_box = sequence.to_pixels(sequence.ground_truth_box(start))
@@ -214,47 +219,54 @@ def reusable(out: Path, job: Job) -> dict | None:
 # ---------------------------------------------------------------- execution
 
 
-def execute(jobs: list[Job], *, workers: int = 1, scheduler: str | None = None) -> Iterator[JobOutput]:
+def execute(jobs: list[Job], *, workers: int = 1, scheduler: str | None = None,
+            isolate: bool = True) -> Iterator[JobOutput]:
     """Run ``jobs`` and yield their outputs as they finish.
 
     ``scheduler`` (a Dask scheduler address) sends them to a Dask cluster;
-    else ``workers > 1`` runs them in that many local processes; else here.
-    A job whose worker dies is yielded as ``failed``.
+    else ``workers`` jobs run at once on this machine.  With ``isolate``
+    (the default, required unless the jobs run one at a time here) every job
+    runs in a fresh process (:mod:`vidtrack.eval.worker`),
+    so its result does not depend on which jobs ran before it in the same
+    process; a job whose process dies is yielded as ``failed``.
     """
     if not jobs:
         return
+    if not isolate and (scheduler is not None or workers > 1):
+        raise UsageError("jobs run in this process only one at a time (no --jobs or --scheduler)")
+    from .worker import run_fresh
+
+    runner = run_fresh if isolate else run_job
     if scheduler is not None:
-        yield from _execute_dask(jobs, scheduler)
+        yield from _execute_dask(jobs, scheduler, runner)
     elif workers > 1 and len(jobs) > 1:
-        yield from _execute_processes(jobs, workers)
+        yield from _execute_threads(jobs, workers, runner)
     else:
         for job in jobs:
-            yield run_job(job)
+            yield runner(job)
 
 
 def _failed(job: Job, exc: BaseException) -> JobOutput:
     return JobOutput(job.filter_name, job.sequence.name, "failed", error=f"{type(exc).__name__}: {exc}")
 
 
-def _execute_processes(jobs: list[Job], workers: int) -> Iterator[JobOutput]:
-    import multiprocessing
-    from concurrent.futures import ProcessPoolExecutor, as_completed
+def _execute_threads(jobs: list[Job], workers: int, runner) -> Iterator[JobOutput]:
+    from concurrent.futures import ThreadPoolExecutor, as_completed
 
-    # spawn: a fresh interpreter per worker (fork after threads were started can deadlock)
-    pool = ProcessPoolExecutor(max_workers=min(workers, len(jobs)),
-                               mp_context=multiprocessing.get_context("spawn"))
+    # each thread waits on its own worker process: ``workers`` jobs track in parallel
+    pool = ThreadPoolExecutor(max_workers=min(workers, len(jobs)))
     try:
-        futures = {pool.submit(run_job, job): job for job in jobs}
+        futures = {pool.submit(runner, job): job for job in jobs}
         for future in as_completed(futures):
             try:
                 yield future.result()
-            except Exception as exc:  # the worker process died
+            except Exception as exc:
                 yield _failed(futures[future], exc)
     finally:
         pool.shutdown(wait=True, cancel_futures=True)
 
 
-def _execute_dask(jobs: list[Job], scheduler: str) -> Iterator[JobOutput]:
+def _execute_dask(jobs: list[Job], scheduler: str, runner) -> Iterator[JobOutput]:
     try:
         from dask.distributed import Client, as_completed
     except ImportError:
@@ -264,7 +276,7 @@ def _execute_dask(jobs: list[Job], scheduler: str) -> Iterator[JobOutput]:
     except (OSError, TimeoutError, ValueError) as exc:
         raise UsageError(f"cannot connect to the Dask scheduler {scheduler}: {exc}") from None
     try:
-        futures = {client.submit(run_job, job, pure=False): job for job in jobs}
+        futures = {client.submit(runner, job, pure=False): job for job in jobs}
         for future in as_completed(futures):
             try:
                 yield future.result()
@@ -341,8 +353,8 @@ class Evaluation:
 
 def run_evaluation(sequences: list[BenchmarkSequence], filters: list[str], out: str | Path, *,
                    seed: int = 0, max_frames: int | None = None, force: bool = False, workers: int = 1,
-                   scheduler: str | None = None, rerun_dir: str | Path | None = None, quiet: bool = True,
-                   on_output: Callable[[JobOutput], None] | None = None) -> Evaluation:
+                   scheduler: str | None = None, isolate: bool = True, rerun_dir: str | Path | None = None,
+                   quiet: bool = True, on_output: Callable[[JobOutput], None] | None = None) -> Evaluation:
     """Run every filter on every sequence (reusing earlier results) and score the result files.
 
     Parameters
@@ -355,8 +367,9 @@ def run_evaluation(sequences: list[BenchmarkSequence], filters: list[str], out: 
         Tracker seed; at most this many frames tracked per sequence (testing).
     force
         Re-run even when a matching result exists.
-    workers, scheduler
-        Local worker processes, or a Dask scheduler address (see :func:`execute`).
+    workers, scheduler, isolate
+        Jobs at once on this machine, or a Dask scheduler address; a fresh
+        process per job (see :func:`execute`).
     rerun_dir
         Also write ``RERUN_DIR/<filter>/<Sequence>.rrd`` recordings.
     quiet
@@ -368,7 +381,7 @@ def run_evaluation(sequences: list[BenchmarkSequence], filters: list[str], out: 
     jobs = []
     for name in filters:
         for sequence in sequences:
-            rerun_path = None if rerun_dir is None else str(Path(rerun_dir) / name / f"{sequence.name}.rrd")
+            rerun_path = None if rerun_dir is None else str(Path(rerun_dir).resolve() / name / f"{sequence.name}.rrd")
             jobs.append(Job(name, sequence, seed=seed, max_frames=max_frames, rerun_path=rerun_path, quiet=quiet))
 
     records: dict[tuple[str, str], dict] = {}
@@ -383,7 +396,7 @@ def run_evaluation(sequences: list[BenchmarkSequence], filters: list[str], out: 
             records[job.key], status[job.key] = record, "reused"
             if on_output is not None:
                 on_output(JobOutput(*job.key, "reused", record=record))
-    for output in execute(pending, workers=workers, scheduler=scheduler):
+    for output in execute(pending, workers=workers, scheduler=scheduler, isolate=isolate):
         key = (output.filter_name, output.sequence_name)
         status[key] = output.status
         if output.status == "failed":

@@ -1,0 +1,17 @@
+"""Imported once by the evaluation's fork server, so each job's fresh process starts warm.
+
+Only imports (and the tracker registry): no tracker runs here, so every forked
+job still starts with pristine library state.
+"""
+
+import tqdm  # noqa: F401
+
+from .. import cli, run, sources  # noqa: F401
+from . import experiment  # noqa: F401
+
+try:
+    from ..tracker import registry
+
+    registry()
+except Exception:  # a broken recipe module must not take the fork server down; the job will report it
+    pass
