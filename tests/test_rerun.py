@@ -7,7 +7,6 @@ Recordings are read back two independent ways: the installed ``rerun`` CLI
 
 from __future__ import annotations
 
-import os
 import re
 import subprocess
 import sys
@@ -29,7 +28,6 @@ from vidtrack.types import Box, Frame, TrackState
 
 SEQUENCES = Path(__file__).resolve().parents[2] / "shared/data/sequences"
 RERUN_CLI = Path(sys.executable).parent / "rerun"
-ENV = {**os.environ, "RERUN_ANALYTICS": "0"}
 
 N_FRAMES = 12
 LOST_FRAMES = range(4, 7)        # lost on 4, 5, 6: "lost" at 4, "re-acquired" at 7
@@ -41,7 +39,7 @@ GROUND_TRUTH = {0: Box(60, 50, 60, 50), 5: Box(66, 50, 60, 50), 10: Box(70, 50, 
 def rerun_cli(*args: str) -> subprocess.CompletedProcess:
     if not RERUN_CLI.exists():
         pytest.skip("the rerun CLI is not installed beside the interpreter")
-    return subprocess.run([str(RERUN_CLI), *args], capture_output=True, text=True, env=ENV, timeout=120)
+    return subprocess.run([str(RERUN_CLI), *args], capture_output=True, text=True, timeout=120)
 
 
 def stats_entities(path: Path) -> set[str]:
@@ -245,7 +243,7 @@ def _write_synthetic_video(folder: Path, n: int) -> None:
 
 
 @pytest.mark.parametrize("name", ["ms", "kalman-cv"])
-def test_cli_writes_a_recording(tmp_path, name, capsys):
+def test_cli_writes_a_recording(tmp_path, name):
     _write_synthetic_video(tmp_path / "img", 10)
     out = tmp_path / f"{name}.rrd"
     assert cli_main([str(tmp_path / "img"), "--init-box", "26,46,28,28", "--filter", name,
