@@ -226,8 +226,8 @@ class MILKalmanFilter:
         The size stays within these multiples of the initial size.
     """
 
-    def __init__(self, *, q_centre: float = 0.04, q_size: float = 0.004, r_centre: float = 0.08,
-                 r_size: float = 1.0, initial_sigma: float = 0.05, lost_below: float = 0.15,
+    def __init__(self, *, q_centre: float = 0.1, q_size: float = 0.004, r_centre: float = 0.08,
+                 r_size: float = 50.0, initial_sigma: float = 0.05, lost_below: float = 0.15,
                  gate: float = 25.0, coast_damping: float = 0.7,
                  size_limits: tuple[float, float] = (0.5, 2.0)) -> None:
         self.q_centre = q_centre
@@ -378,19 +378,24 @@ class MILMeasurer:
     inlier_bonus, motion_weight
         ``locate="window"``: evidence ``clip(score, -1, 1) + inlier_bonus * inlier``
         and the weight of the squared displacement (:func:`locate_window`).
+    learn_above
+        Only frames whose posterior confidence reaches this add training triples.
     spatial_prior
         Extra cost of an inlier label growing with the squared normalised
         distance of the superpixel from the predicted centre (0: SVM scores only).
     """
 
     def __init__(self, *, lam: float = 3.0, pad: float = 0.6, max_extra: float = 1.0,
-                 object_pixels: float = 40.0, superpixels_per_side: float = 5.0, slic_iterations: int = 4,
+                 object_pixels: float = 40.0, superpixels_per_side: float = 3.5, slic_iterations: int = 4,
                  slic_ruler: float = 10.0, positive_fraction: float = 0.7, negative_fraction: float = 0.3,
                  gamma_max: int = 25, update_every: int = 6, svm_lam: float = 1e-3, svm_iter: int = 40,
-                 svm_init_iter: int = 1000, svm_max_t: int | None = 2000, svm_batch: int | None = 256, keep_initial: bool = True,
-                 bag_scale: float = 1.3, cut_slope: float = 2.0, cut_beta: float = 1.0,
+                 svm_init_iter: int = 1000, svm_max_t: int | None = 2000, svm_batch: int | None = 256,
+                 keep_initial: bool = True,
+                 bag_scale: float = 1.15, cut_slope: float = 2.0, cut_beta: float = 1.0,
                  feature_order: int = 1, min_inlier_fraction: float = 0.1, locate: str = "smoothed",
-                 spatial_prior: float = 0.0, inlier_bonus: float = 0.5, motion_weight: float = 0.1, size_coverage: float = 0.6, positive_margin: float = 0.0, outliers_negative: bool = True,
+                 spatial_prior: float = 1.0, learn_above: float = 0.5, inlier_bonus: float = 0.5,
+                 motion_weight: float = 0.1, size_coverage: float = 0.6, positive_margin: float = 0.0,
+                 outliers_negative: bool = True,
                  rng: np.random.Generator | int | None = None) -> None:
         self.lam = lam
         self.pad = pad
@@ -416,6 +421,7 @@ class MILMeasurer:
         self.min_inlier_fraction = min_inlier_fraction
         self.locate = locate
         self.spatial_prior = spatial_prior
+        self.learn_above = learn_above
         self.inlier_bonus = inlier_bonus
         self.motion_weight = motion_weight
         self.size_coverage = size_coverage
@@ -584,7 +590,7 @@ class MILMeasurer:
         ``negative_fraction`` inside it.  Nothing is learned while lost.
         """
         data = self.last_
-        if data is not None and posterior.status == TRACKING:
+        if data is not None and posterior.status == TRACKING and posterior.confidence >= self.learn_above:
             frac = sp.fraction_inside(data.labels, data.region.box_to_region(posterior.box), len(data.scores))
             y = np.zeros(len(frac), dtype=int)
             y[(frac >= self.positive_fraction) & data.inliers & (data.scores > self.positive_margin)] = 1
