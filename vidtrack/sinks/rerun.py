@@ -526,6 +526,9 @@ class RerunSink:
         for action, path, payload in self._pending:
             if action == "row":
                 kind, index_, data = payload
+                if path in self._rows and self._rows[path][0] != kind:   # a stage changed shape
+                    self._send_buffered()
+                    del self._rows[path]
                 self._rows.setdefault(path, (kind, []))[1].append((index_, data))
             elif action == "style":
                 self._rec.log(path, *payload, static=True)
