@@ -13,7 +13,7 @@ import pytest
 from vidtrack.errors import UsageError
 from vidtrack.filters.channels import (CBTFilter, CBTModel, ChannelBasis, ChannelBayesFilter, decode, decode_modes,
                                        embedded_predict,
-                                       encode, normalized)
+                                       encode)
 from vidtrack.filters.ekf import ExtendedKalmanFilter
 from vidtrack.filters.kalman import KalmanFilter, motion_model
 from vidtrack.filters.pdaf import pdaf_update
