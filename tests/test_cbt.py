@@ -260,11 +260,13 @@ def test_missing_or_malformed_model_is_a_one_line_usage_error(tmp_path, capsys, 
 def test_carlin_reproduction_small():
     from vidtrack.experiments import cbt_carlin
 
-    args = argparse.Namespace(runs=8, seed=0, steps=50, train=30, channels=12, order=2)
+    args = argparse.Namespace(runs=8, seed=0, steps=50, train=30, channels=12, order=2, baum_welch=2)
     result = cbt_carlin.run(args, lambda it, **kw: it)
     rmse = result["rmse"]
     assert set(rmse) == {"CBT", "EKF", "Grid", "SIR PF"} and result["runs"] == 8
     assert rmse["CBT"] < 7.0 and rmse["SIR PF"] < 7.0 and rmse["EKF"] > 10.0
+    ll = result["baum_welch"]["log_likelihood"]
+    assert len(ll) == 2 and ll[1] >= ll[0] and np.isfinite(result["rmse_extra"]["CBT+BW"])
     assert "Channel Based Tracking" in cbt_carlin.format_table(result)
 
 

@@ -114,17 +114,30 @@ def _broadcast_current(h: np.ndarray, order: int) -> np.ndarray:
     return h.reshape((-1,) + (1,) * (order - 1))
 
 
-def forward(G: np.ndarray, h: np.ndarray, W0: np.ndarray, product: str = "plain") -> tuple[list[np.ndarray], float]:
+def _shift(W: np.ndarray, S: np.ndarray | None) -> np.ndarray:
+    """Apply a known translation matrix to the current-position axis (identity when None)."""
+    return W if S is None else np.tensordot(S, W, axes=([1], [0]))
+
+
+def _unshift(E: np.ndarray, S: np.ndarray | None) -> np.ndarray:
+    """The adjoint of :func:`_shift` (for the backward pass)."""
+    return E if S is None else np.tensordot(S.T, E, axes=([1], [0]))
+
+
+def forward(G: np.ndarray, h: np.ndarray, W0: np.ndarray, product: str = "plain",
+            shifts: Sequence[np.ndarray | None] | None = None) -> tuple[list[np.ndarray], float]:
     """Alpha recursion: ``alpha_k = w_{k|k}`` (eq. 10) from the prior ``W0`` at frame ``order - 1``.
 
-    ``h`` ``(T, C)`` likelihoods of the current position.  Returns the alphas
-    for frames ``order - 1 .. T - 1`` and ``sum log`` of the normalisers.
+    ``h`` ``(T, C)`` likelihoods of the current position.  ``shifts[k]``, if
+    given, is a known translation applied to the predicted position of frame
+    ``k`` (Carlin's ``8 cos(1.2 k)``).  Returns the alphas for frames
+    ``order - 1 .. T - 1`` and ``sum log`` of the normalisers.
     """
     order = G.ndim - 1
     alphas = [normalized(W0)]
     loglik = 0.0
     for k in range(order, len(h)):
-        prior = embedded_predict(alphas[-1], G)
+        prior = normalized(_shift(embedded_predict(alphas[-1], G), None if shifts is None else shifts[k]))
         post = channel_product(_broadcast_current(h[k], order), prior, product)
         s = float(post.sum())
         loglik += np.log(max(s, _TINY))
@@ -132,7 +145,8 @@ def forward(G: np.ndarray, h: np.ndarray, W0: np.ndarray, product: str = "plain"
     return alphas, loglik
 
 
-def backward(G: np.ndarray, h: np.ndarray, product: str = "plain") -> list[np.ndarray]:
+def backward(G: np.ndarray, h: np.ndarray, product: str = "plain",
+             shifts: Sequence[np.ndarray | None] | None = None) -> list[np.ndarray]:
     """Beta recursion (eq. 17): ``beta_k = F' (h(z_{k+1}) . beta_{k+1})``, normalised, for frames ``order-1 .. T-1``."""
     order = G.ndim - 1
     letters = _LETTERS[: order + 1]
@@ -140,6 +154,7 @@ def backward(G: np.ndarray, h: np.ndarray, product: str = "plain") -> list[np.nd
     betas = [np.full(shape, 1.0 / np.prod(shape))]
     for k in range(len(h) - 2, order - 2, -1):
         e = channel_product(_broadcast_current(h[k + 1], order), betas[-1], product)  # over x_{k+1}, ..., x_{k-n+2}
+        e = _unshift(e, None if shifts is None else shifts[k + 1])
         # beta_k[x_k..x_{k-n+1}] = sum_{x_{k+1}} G[x_{k+1}, x_k, .., x_{k-n+1}] e[x_{k+1}, x_k, .., x_{k-n+2}]
         b = np.einsum(f"{letters},{letters[:-1]}->{letters[1:]}", G, e)
         betas.append(normalized(b))
@@ -148,7 +163,8 @@ def backward(G: np.ndarray, h: np.ndarray, product: str = "plain") -> list[np.nd
 
 def baum_welch(z_channels: Sequence[np.ndarray], G: np.ndarray, H: np.ndarray, *, iterations: int = 4,
                product: str = "plain", h_floor: float = 0.0, learn_H: bool = True, W0: Sequence[np.ndarray] | None = None,
-               tol: float = 1e-4, smoothing: float = 1e-6) -> BaumWelchResult:
+               tol: float = 1e-4, smoothing: float = 1e-6,
+               shifts: Sequence[Sequence[np.ndarray | None]] | None = None) -> BaumWelchResult:
     """Refine an embedded model ``(G, H)`` from measurement channel sequences (eqs. 17-19).
 
     Parameters
@@ -174,6 +190,9 @@ def baum_welch(z_channels: Sequence[np.ndarray], G: np.ndarray, H: np.ndarray, *
         mapped to state channels.
     tol
         Stop when the largest change of ``G`` falls below this.
+    shifts
+        Per sequence and frame, an optional known translation matrix applied
+        to the predicted position (``G`` then models the position before it).
 
     Returns
     -------
@@ -182,7 +201,6 @@ def baum_welch(z_channels: Sequence[np.ndarray], G: np.ndarray, H: np.ndarray, *
     G = np.asarray(G, float).copy()
     H = np.asarray(H, float).copy()
     order = G.ndim - 1
-    letters = _LETTERS[: order + 1]
     result = BaumWelchResult(G, H)
     for _ in range(iterations):
         xi_sum = np.zeros_like(G)
@@ -192,6 +210,7 @@ def baum_welch(z_channels: Sequence[np.ndarray], G: np.ndarray, H: np.ndarray, *
             z = np.asarray(z, float)
             if len(z) <= order:
                 continue
+            sh = None if shifts is None else shifts[s]
             h = likelihoods(H, z, h_floor)
             if W0 is not None:
                 w0 = W0[s]
@@ -200,12 +219,13 @@ def baum_welch(z_channels: Sequence[np.ndarray], G: np.ndarray, H: np.ndarray, *
                 w0 = state[order - 1]
                 for j in range(1, order):
                     w0 = np.multiply.outer(w0, state[order - 1 - j])
-            alphas, ll = forward(G, h, w0, product)
-            betas = backward(G, h, product)
+            alphas, ll = forward(G, h, w0, product, sh)
+            betas = backward(G, h, product, sh)
             loglik += ll
             for i in range(len(alphas) - 1):
                 k = i + order - 1  # frame of alphas[i]
                 e = channel_product(_broadcast_current(h[k + 1], order), betas[i + 1], product)
+                e = _unshift(e, None if sh is None else sh[k + 1])
                 # xi[x_{k+1}, x_k, ..., x_{k-n+1}] ∝ G . e[x_{k+1}, .., x_{k-n+2}] . alpha_k[x_k, .., x_{k-n+1}] (eq. 18)
                 e_ext = e.reshape(e.shape + (1,))
                 a_ext = alphas[i].reshape((1,) + alphas[i].shape)
