@@ -716,6 +716,7 @@ class CBTFilter:
         self.history_ = [centre.copy()]
         self.since_learn_ = 0
         self.modes_: list[tuple[np.ndarray, float]] = []
+        self.prior_box_ = box
         self.estimate_ = Estimate(box, None, 1.0, TRACKING, {})
 
     @property
@@ -735,7 +736,8 @@ class CBTFilter:
         self.W_ = [embedded_predict(W, G) for W, G in zip(self.W_, self.G_)]  # w_{k|k-1} = F w_{k-1|k-1}
         m = self._marginals()
         t, mass = decode_nd(np.multiply.outer(m[0], m[1]))
-        self.estimate_ = Estimate(self._box_at(self._to_frame(t)), None, self.estimate_.confidence,
+        self.prior_box_ = self._box_at(np.clip(self._to_frame(t), 0.0, np.asarray(self.frame_size_, float)))
+        self.estimate_ = Estimate(self.prior_box_, None, self.estimate_.confidence,
                                   self.estimate_.status, {"mode_mass": mass})
         return self.estimate_
 
@@ -787,7 +789,8 @@ class CBTFilter:
             self.history_ = [centre.copy()]  # a gap breaks the displacement chain
             if self.coast_when_lost:  # forget the velocity: the history repeats the current position
                 self.W_ = [diagonal_history(W.reshape(W.shape[0], -1).sum(axis=1), self.order) for W in self.W_]
-        self.estimate_ = Estimate(self._box_at(centre), None, confidence, status, scalars)
+        box = self._box_at(centre) if status == TRACKING else self.prior_box_  # lost: the prediction
+        self.estimate_ = Estimate(box, None, confidence, status, scalars)
         return self.estimate_
 
     def _learn(self) -> None:
