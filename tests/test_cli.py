@@ -127,3 +127,21 @@ def test_video_failing_part_way_keeps_tracked_frames(tmp_path, sample_init_box):
     kept = boxes.read_text().splitlines()
     assert 20 < len(kept) < 150
     assert f"kept the {len(kept)} frames" in lines[0]
+
+
+def test_face_detector_tracks_a_face(tmp_path):
+    """The seed's motivating example: NormalHedge over OpenCV's Haar face cascade (shipped in the wheel)."""
+    from conftest import SEQUENCES
+
+    sequence = SEQUENCES / "FaceOcc1"
+    if not sequence.is_dir():
+        pytest.skip("shared benchmark sequences not present")
+    boxes = tmp_path / "b.txt"
+    # OTB ground truth is 1-based: 118,69,114,162 -> 0-based init box.
+    assert main([str(sequence / "img"), "--init-box", "117,68,114,162", "--filter", "nh", "--detector", "face",
+                 "--boxes", str(boxes), "--max-frames", "40", "--quiet"]) == 0
+    tracked = np.loadtxt(boxes, delimiter=",")
+    truth = np.loadtxt(sequence / "groundtruth_rect.txt", delimiter=",")[:40]
+    truth[:, :2] -= 1
+    error = np.hypot(*((tracked[:, :2] + tracked[:, 2:] / 2) - (truth[:, :2] + truth[:, 2:] / 2)).T)
+    assert error.mean() < 15.0

@@ -9,11 +9,12 @@ over box positions: a position's score is the best ``IoU(box, detection) *
 strength`` over the detections (0 where nothing fired), where ``strength``
 grows with the number of merged raw detections (``detectMultiScale2``).
 
-The cascade file comes from ``cv2.data.haarcascades`` (OpenCV 4 wheels ship
-``haarcascade_frontalface_default.xml`` there) or from the environment
-variable ``VIDTRACK_FACE_CASCADE``.  The OpenCV 5.0 wheels ship an empty
-``cv2/data`` (opencv-python issue #1244), so without that variable the
-detector raises :class:`~vidtrack.errors.UsageError`.
+The cascade file comes from the environment variable
+``VIDTRACK_FACE_CASCADE`` if set, else from ``cv2.data.haarcascades``: the
+OpenCV 4 wheels ship ``haarcascade_frontalface_default.xml`` there, which is
+why vidtrack requires ``opencv-contrib-python-headless<5`` (the 5.0 wheels
+ship an empty ``cv2/data``, opencv-python issue #1244).  With no loadable
+cascade the detector raises :class:`~vidtrack.errors.UsageError`.
 """
 
 from __future__ import annotations
@@ -49,7 +50,8 @@ def find_face_cascade() -> Path:
         if path.is_file() and not cv2.CascadeClassifier(str(path)).empty():
             return path
     raise UsageError("--detector face needs a Haar face cascade: this OpenCV build ships none in "
-                     "cv2.data.haarcascades; set VIDTRACK_FACE_CASCADE to haarcascade_frontalface_default.xml")
+                     "cv2.data.haarcascades (install opencv-contrib-python-headless<5, or set "
+                     "VIDTRACK_FACE_CASCADE to a haarcascade_frontalface_default.xml)")
 
 
 def cascade_detector(path: Path, *, scale_factor: float = 1.1, min_neighbors: int = 2) -> DetectFn:
