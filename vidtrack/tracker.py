@@ -89,6 +89,7 @@ def make_state(index: int, prior: Estimate, measurement: Measurement | None, pos
         stages.update(measurement.stages)
         measured = getattr(measurement, "box", None)
         search_region = measurement.search_region
+    stages.update(posterior.stages)
     scalars = dict(posterior.scalars)
     scalars.setdefault("confidence", float(posterior.confidence))
     if posterior.covariance is not None:

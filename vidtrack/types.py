@@ -211,7 +211,9 @@ class Estimate:
 
     ``confidence`` in ``[0, 1]`` and ``status`` are the filter's own judgement
     of the estimate; ``scalars`` are filter-specific numbers worth plotting
-    (innovation, covariance trace, c_t ...).
+    (innovation, covariance trace, c_t ...); ``stages`` are the filter's own
+    intermediate arrays (e.g. ``particles``), merged into the
+    :class:`TrackState` beside the measurer's.
     """
 
     box: Box
@@ -219,6 +221,7 @@ class Estimate:
     confidence: float = 1.0
     status: Status = TRACKING
     scalars: Mapping[str, float] = field(default_factory=dict)
+    stages: Mapping[str, Any] = field(default_factory=dict)
 
 
 @dataclass(frozen=True)

@@ -25,7 +25,7 @@ All three mark the target ``lost`` when the map's peak score
 (``ScoreMap.quality``) is below ``lost_below``: they then skip the update and
 report their prediction.  Confidence is the weight (posterior) mass within
 ``radius`` box sizes of the estimate, times the peak-score quality.  Each
-exposes ``stages_ = {"particles": (N, 3) [cx, cy, weight]}`` in frame
+exposes (in ``Estimate.stages``) ``{"particles": (N, 3) [cx, cy, weight]}`` in frame
 coordinates after every update.
 """
 
@@ -80,7 +80,8 @@ class _CentreBoxFilter:
         return self.estimate_
 
     def _lost(self, prior: Estimate, quality: float, scalars: dict) -> Estimate:
-        self.estimate_ = Estimate(prior.box, prior.covariance, float(np.clip(quality, 0, 1)) * 0.5, LOST, scalars)
+        self.estimate_ = Estimate(prior.box, prior.covariance, float(np.clip(quality, 0, 1)) * 0.5, LOST, scalars,
+                                  stages=self.stages_)
         return self.estimate_
 
 
@@ -196,7 +197,8 @@ class NormalHedgeBoxFilter(_CentreBoxFilter):
                    "concentration": concentration, "deleted": float(self.core_.deleted_)}
         self.stages_ = {"particles": np.column_stack([states, weights])}
         confidence = concentration * float(np.clip(quality, 0.0, 1.0))
-        self.estimate_ = Estimate(self._box(centre), self._cov(states, weights), confidence, TRACKING, scalars)
+        self.estimate_ = Estimate(self._box(centre), self._cov(states, weights), confidence, TRACKING, scalars,
+                                  stages=self.stages_)
         return self.estimate_
 
 
@@ -272,7 +274,7 @@ class ParticleBoxFilter(_CentreBoxFilter):
         scalars = {"concentration": concentration, "log_evidence": float(log_evidence),
                    "effective_particles": float(1.0 / np.sum(self.core_.weights_ ** 2))}
         confidence = concentration * float(np.clip(quality, 0.0, 1.0))
-        self.estimate_ = Estimate(self._box(mean), cov, confidence, TRACKING, scalars)
+        self.estimate_ = Estimate(self._box(mean), cov, confidence, TRACKING, scalars, stages=self.stages_)
         return self.estimate_
 
 
@@ -354,5 +356,6 @@ class GridBayesBoxFilter(_CentreBoxFilter):
         concentration = float(self.p_[d2 <= (self.radius * self.scale_) ** 2].sum())
         self.stages_ = {"particles": self._points()}
         confidence = concentration * float(np.clip(quality, 0.0, 1.0))
-        self.estimate_ = Estimate(self._box(mean), cov, confidence, TRACKING, {"concentration": concentration})
+        self.estimate_ = Estimate(self._box(mean), cov, confidence, TRACKING, {"concentration": concentration},
+                                  stages=self.stages_)
         return self.estimate_

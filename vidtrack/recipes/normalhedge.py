@@ -10,28 +10,14 @@ and ``bayes`` (exact grid Bayes) all read the same
 
 from __future__ import annotations
 
-import dataclasses
-
 import numpy as np
 
 from ..errors import UsageError
 from ..filters.score_trackers import GridBayesBoxFilter, NormalHedgeBoxFilter, ParticleBoxFilter
 from ..measure.score_map import NCCScoreMapMeasurer
 from ..tracker import Recipe, Tracker
-from ..types import Frame, TrackState
 
 DETECTORS = ("ncc", "face")
-
-
-class StagedTracker(Tracker):
-    """A :class:`Tracker` that also shows the filter's own stages (``filter.stages_``, e.g. particles)."""
-
-    def step(self, frame: Frame) -> TrackState:
-        state = super().step(frame)
-        extra = getattr(self.filter, "stages_", None)
-        if extra:
-            state = dataclasses.replace(state, stages={**state.stages, **extra})
-        return state
 
 
 def make_measurer(detector: str = "ncc", **options):
@@ -52,7 +38,7 @@ def _builder(make_filter):
         unknown = set(options)
         if unknown:
             raise UsageError(f"unsupported option(s) for this filter: {', '.join(sorted(unknown))}")
-        return StagedTracker(measurer, make_filter(np.random.default_rng(seed)))
+        return Tracker(measurer, make_filter(np.random.default_rng(seed)))
     return build
 
 
