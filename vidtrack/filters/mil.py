@@ -352,8 +352,9 @@ class MILMeasurer:
     svm_lam, svm_iter, svm_init_iter, svm_max_t, svm_batch
         Pegasos regularisation, iterations per update, at bootstrap, step-counter
         cap, and mini-batch size (None: the whole training set per step).
-    keep_initial
-        Keep the first frame's triples in the training set for ever (an anchor against drift).
+    keep_initial, anchor_weight
+        Keep the first frame's triples in the training set for ever (an anchor
+        against drift), counted ``anchor_weight`` times.
     bag_scale
         The positive bag: superpixels whose centroid is inside the predicted box scaled by this.
     cut_slope, cut_beta
@@ -390,7 +391,7 @@ class MILMeasurer:
                  slic_ruler: float = 10.0, positive_fraction: float = 0.7, negative_fraction: float = 0.3,
                  gamma_max: int = 25, update_every: int = 6, svm_lam: float = 1e-3, svm_iter: int = 40,
                  svm_init_iter: int = 1000, svm_max_t: int | None = 2000, svm_batch: int | None = 256,
-                 keep_initial: bool = True,
+                 keep_initial: bool = True, anchor_weight: int = 1,
                  bag_scale: float = 1.15, cut_slope: float = 2.0, cut_beta: float = 1.0,
                  feature_order: int = 1, min_inlier_fraction: float = 0.1, locate: str = "smoothed",
                  spatial_prior: float = 1.0, learn_above: float = 0.5, inlier_bonus: float = 0.5,
@@ -414,6 +415,7 @@ class MILMeasurer:
         self.svm_max_t = svm_max_t
         self.svm_batch = svm_batch
         self.keep_initial = keep_initial
+        self.anchor_weight = anchor_weight
         self.bag_scale = bag_scale
         self.cut_slope = cut_slope
         self.cut_beta = cut_beta
@@ -467,8 +469,8 @@ class MILMeasurer:
         self.training_ = [(X, y, t) for X, y, t in self.training_ + self.buffer_ if t >= horizon]
         self.buffer_ = []
         sets = list(self.training_)
-        if self.keep_initial:
-            sets.append(self.initial_)
+        if self.keep_initial:  # the anchor: the first frame's triples, repeated anchor_weight times
+            sets.extend([self.initial_] * max(1, int(self.anchor_weight)))
         X = np.concatenate([s[0] for s in sets])
         y = np.concatenate([s[1] for s in sets])
         if np.any(y > 0) and np.any(y < 0):
