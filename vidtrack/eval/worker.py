@@ -46,7 +46,7 @@ def _forked_child(job, connection) -> None:
     try:
         output = run_job(job)
     except KeyboardInterrupt:
-        os._exit(130)
+        raise SystemExit(130) from None  # a clean exit: finalizers run, nothing leaks
     connection.send(output)
     connection.close()
 
