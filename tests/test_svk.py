@@ -164,3 +164,10 @@ def test_svk_tables_one_run_matches_the_seed():
     assert set(rows[0]) == {"filter", "whole", "CA", "Drift", "CV", "CA*", "Drift*", "CV*"}
     table = svk_tables.format_table({"experiment": "svk-linear", "runs": 1, "seed": 0, "R100": rows})
     assert "Table 1" in table and "Kalman DR Q=1e-4R" in table
+
+
+def test_average_rows_is_the_columnwise_mean_of_per_run_rmse():
+    from vidtrack.experiments.svk_tables import average_rows
+
+    runs = [[{"filter": "SVK", "whole": 10.0}], [{"filter": "SVK", "whole": 30.0}]]
+    assert average_rows(runs) == [{"filter": "SVK", "whole": 20.0}]
