@@ -145,3 +145,15 @@ def test_face_detector_tracks_a_face(tmp_path):
     truth[:, :2] -= 1
     error = np.hypot(*((tracked[:, :2] + tracked[:, 2:] / 2) - (truth[:, :2] + truth[:, 2:] / 2)).T)
     assert error.mean() < 15.0
+
+
+@pytest.mark.parametrize("name", ["opencv-mil", "opencv-tld"])
+def test_opencv_runs_reproducible_across_processes(name, tmp_path, sample_init_box):
+    outputs = []
+    for run in range(2):
+        boxes = tmp_path / f"b{run}.txt"
+        result = vidtrack(SAMPLE_VIDEO, "--init-box", sample_init_box, "--filter", name, "--boxes", boxes,
+                          "--max-frames", "40", "--seed", "5", "--quiet")
+        assert result.returncode == 0, result.stderr
+        outputs.append(boxes.read_text())
+    assert outputs[0] == outputs[1]

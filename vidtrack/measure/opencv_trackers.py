@@ -36,7 +36,8 @@ OPENCV_TRACKERS: dict[str, Callable[[], object]] = {
 }
 
 
-#: OpenCV trackers whose internal randomness ``--seed`` cannot control (measured: two runs differ).
+#: OpenCV trackers with random state inside OpenCV that ``--seed`` cannot reset: reproducible per
+#: process only (measured: two runs in one process differ, two fresh processes agree).
 NOT_REPRODUCIBLE = {"mil", "tld"}
 
 
@@ -50,8 +51,10 @@ class OpenCVTrackerMeasurer:
         Key of :data:`OPENCV_TRACKERS`.
     seed
         Passed to ``cv2.setRNGSeed`` before initialisation.  OpenCV's MIL and
-        TLD draw from a random generator that this does not reach, so those
-        two are not reproducible run to run (see :data:`NOT_REPRODUCIBLE`).
+        TLD also keep random state inside OpenCV that this does not reset:
+        a run is reproducible in a fresh process (every ``vidtrack`` command,
+        every ``vidtrack eval`` job), but a second tracker built in the same
+        process differs (see :data:`NOT_REPRODUCIBLE`).
     bins
         Histogram bins per channel for the confidence.
     adapt_rate
