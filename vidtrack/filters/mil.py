@@ -226,7 +226,7 @@ class MILKalmanFilter:
         The size stays within these multiples of the initial size.
     """
 
-    def __init__(self, *, q_centre: float = 0.1, q_size: float = 0.004, r_centre: float = 0.08,
+    def __init__(self, *, q_centre: float = 0.1, q_size: float = 0.004, r_centre: float = 0.15,
                  r_size: float = 50.0, initial_sigma: float = 0.05, lost_below: float = 0.15,
                  gate: float = 25.0, coast_damping: float = 0.7,
                  size_limits: tuple[float, float] = (0.5, 2.0)) -> None:
