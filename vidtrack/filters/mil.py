@@ -28,6 +28,28 @@ Two pieces sit on the tracker's data path:
   takes Pegasos steps every ``update_every = 6`` frames.
 * :class:`MILKalmanFilter` is the Kalman filter on ``x``; no inliers means
   predict only and status ``lost``.
+
+Where the paper is unclear (or garbled in the extracted text), this module assumes:
+
+* search region: half-extent ``d/2 + pad d + min(3 sigma, max_extra d)`` per
+  axis, ``sigma = sqrt diag(C P C')`` of the centre (eq. 8 keeps only "factor 3");
+  the region is resampled so the box spans about ``object_pixels`` pixels;
+* Pegasos projects on the L2 ball of radius ``1/sqrt(lambda)`` (the Pegasos
+  paper; the extracted text reads "||w||_1 <= 1"), with class-balanced hinge
+  loss, a regularised bias feature, mini-batches and a capped step counter;
+* the first frame's triples stay in the training set (``keep_initial``), the
+  others for ``gamma_max`` frames; nothing is learned from frames whose
+  posterior confidence is under ``learn_above``;
+* the positive bag is the superpixels whose centroid lies in the predicted box
+  (scaled by ``bag_scale``); the cut's unaries add a spatial prior on the
+  distance from the predicted centre (E may depend on x, sec. 1.2);
+* the measured centre comes from the smoothed inlier map (fig. 3's "smoothed
+  score used to select the bounding box location"); the extent of a partial
+  inlier set is not the object's size, so the size is measured only when the
+  inliers cover ``size_coverage`` of the box and, by default, with a noise
+  (``r_size``) so large that the size stays in effect at its initial value:
+  on the test sequences a measured size shrank the box to half its height
+  within 60 frames.
 """
 
 from __future__ import annotations
