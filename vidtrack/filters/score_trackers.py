@@ -75,6 +75,12 @@ class _CentreBoxFilter:
             return centre
         return np.clip(centre, 0.0, np.asarray(self.frame_size_, dtype=float))
 
+    def _start(self, box: Box, frame: Frame | None) -> None:
+        """Book-keeping shared by every ``initialize``: box size, scale, frame size."""
+        self.size_ = box.size.copy()
+        self.scale_ = box_scale(box)
+        self.frame_size_ = None if frame is None else (frame.width, frame.height)
+
     @property
     def estimate(self) -> Estimate:
         return self.estimate_
@@ -131,9 +137,7 @@ class NormalHedgeBoxFilter(_CentreBoxFilter):
         self.rng = rng
 
     def initialize(self, box: Box, frame: Frame | None = None) -> None:
-        self.size_ = box.size.copy()
-        self.scale_ = box_scale(box)
-        self.frame_size_ = None if frame is None else (frame.width, frame.height)
+        self._start(box, frame)
         sigma = self.sigma_star * self.scale_
         self.core_ = NormalHedgeTracker(self.n_actions, self.alpha, sigma, dynamics=None, rng=self.rng,
                                         prune_below=self.prune_below)
@@ -233,9 +237,7 @@ class ParticleBoxFilter(_CentreBoxFilter):
         self.rng = rng
 
     def initialize(self, box: Box, frame: Frame | None = None) -> None:
-        self.size_ = box.size.copy()
-        self.scale_ = box_scale(box)
-        self.frame_size_ = None if frame is None else (frame.width, frame.height)
+        self._start(box, frame)
         step = self.sigma_d * self.scale_
 
         def propagate(x, rng):  # x_k = x_{k-1} + N(0, sigma_d^2 I)
