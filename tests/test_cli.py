@@ -157,3 +157,33 @@ def test_opencv_runs_reproducible_across_processes(name, tmp_path, sample_init_b
         assert result.returncode == 0, result.stderr
         outputs.append(boxes.read_text())
     assert outputs[0] == outputs[1]
+
+
+def test_ctrl_c_keeps_every_tracked_frame(tmp_path, sample_init_box):
+    import re
+    import signal
+    import time
+
+    # A frame folder long enough that the run is still going when interrupted.
+    folder = tmp_path / "frames"
+    folder.mkdir()
+    capture = cv2.VideoCapture(str(SAMPLE_VIDEO))
+    for k in range(150):
+        ok, frame = capture.read()
+        assert ok
+        cv2.imwrite(str(folder / f"{k:04d}.png"), frame)
+    boxes, log = tmp_path / "b.txt", tmp_path / "log.csv"
+    process = subprocess.Popen([sys.executable, "-m", "vidtrack", str(folder), "--init-box", sample_init_box,
+                                "--filter", "svk", "--boxes", str(boxes), "--log", str(log)],
+                               stderr=subprocess.PIPE, text=True)
+    deadline = time.time() + 60
+    while time.time() < deadline and (not boxes.exists() or len(boxes.read_text().splitlines()) < 5):
+        time.sleep(0.1)
+    process.send_signal(signal.SIGINT)
+    _, stderr = process.communicate(timeout=60)
+    assert process.returncode == 130
+    assert "Traceback" not in stderr
+    tracked = int(re.search(r"interrupted after (\d+) frames", stderr).group(1))
+    assert 5 <= tracked < 150
+    assert len(boxes.read_text().splitlines()) == tracked
+    assert len(log.read_text().splitlines()) == tracked + 1  # header
