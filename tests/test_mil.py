@@ -1,10 +1,11 @@
 """Multiple Instance Filtering: measurement of a known inlier set, the Kalman filter, a synthetic track."""
 
+import cv2
 import numpy as np
 import pytest
 
-from vidtrack.filters.mil import (MILKalmanFilter, box_from_state, inlier_measurement, locate_inliers,
-                                  state_from_box)
+from vidtrack.filters.mil import (MILKalmanFilter, box_from_state, cut_patch, inlier_measurement,
+                                  locate_inliers, match_templates, state_from_box)
 from vidtrack.measure import superpixels as sp
 from vidtrack.tracker import build_tracker
 from vidtrack.types import Box, Estimate, Frame, Superpixels
@@ -94,3 +95,48 @@ def test_mil_tracks_a_moving_square_and_exposes_stages():
     assert state.stages["superpixels"].shape == state.stages["inliers"].shape
     for name in ("inlier_count", "svm_margin", "covariance_trace"):
         assert name in state.scalars
+
+
+def test_template_match_finds_a_shifted_patch_to_subpixel():
+    rng = np.random.default_rng(3)
+    grey = cv2.GaussianBlur(rng.uniform(0, 255, (80, 100)).astype(np.float32), (0, 0), 2.0)
+    template = cut_patch(grey, np.array([50.0, 40.0]), (20, 16))
+    assert template.shape == (16, 20)
+    assert cut_patch(grey, np.array([5.0, 40.0]), (20, 16)) is None  # leaves the image
+    found, peak = match_templates(grey, [template], np.array([44.0, 45.0]), np.array([10.0, 10.0]))
+    assert peak == pytest.approx(1.0, abs=1e-3)
+    assert found == pytest.approx([50.0, 40.0], abs=0.3)
+    # outside the search radius it is not found
+    found, peak = match_templates(grey, [template], np.array([20.0, 40.0]), np.array([5.0, 5.0]))
+    assert np.linalg.norm(found - [50.0, 40.0]) > 10 and peak < 0.9
+
+
+def test_mil_coasts_behind_an_occluder_and_reacquires():
+    def scene(index, cx):
+        img = _scene(index, cx, 60).image
+        img[:, 80:104] = (128, 128, 128)  # a grey post, wider than the square
+        return Frame(index, img)
+
+    tracker = build_tracker("mil", seed=0)
+    tracker.initialize(scene(0, 30), Box(18, 48, 24, 24))
+    statuses = []
+    for k in range(1, 45):
+        state = tracker.step(scene(k, 30 + 2 * k))
+        statuses.append(state.status)
+    assert "lost" in statuses  # hidden behind the post
+    assert state.status == "tracking"
+    assert abs(state.box.center[0] - (30 + 2 * 44)) < 6
+
+
+def test_pegasos_iterate_averaging_scores_with_the_mean_iterate():
+    from vidtrack.learn.pegasos import PegasosSVM
+
+    rng = np.random.default_rng(1)
+    X = np.vstack([rng.normal(1.0, 0.3, (50, 3)), rng.normal(-1.0, 0.3, (50, 3))])
+    y = np.r_[np.ones(50), -np.ones(50)]
+    plain = PegasosSVM(lam=1e-2, batch_size=10, n_iter=30, rng=5).partial_fit(X, y)
+    avg = PegasosSVM(lam=1e-2, batch_size=10, n_iter=30, rng=5, average=True).partial_fit(X, y)
+    assert np.allclose(plain.coef_, avg.coef_)  # training is unchanged
+    assert not np.allclose(plain.decision_function(X), avg.decision_function(X))
+    assert np.allclose(avg.decision_function(X), X @ avg.avg_coef_[:-1] + avg.avg_coef_[-1])
+    assert np.mean(np.sign(avg.decision_function(X)) == y) == 1.0

@@ -80,14 +80,20 @@ class PegasosSVM:
         Cap on the iteration counter, so the step size ``1/(lambda t)`` never
         falls below ``1/(lambda max_t)`` and the model keeps adapting on a
         long video (``None``: the plain Pegasos schedule).
+    average
+        Score with the mean of the iterates of the last ``partial_fit`` call
+        (iterate averaging, which lowers the variance of the stochastic
+        steps) instead of the last iterate; training continues from the last
+        iterate either way.
     rng
         Generator, seed or None for the mini-batch sampling.
     """
 
     def __init__(self, *, lam: float = 1e-2, batch_size: int | None = None, n_iter: int = 20,
                  bias_scale: float = 1.0, balanced: bool = True, max_t: int | None = None,
-                 rng: np.random.Generator | int | None = None) -> None:
+                 average: bool = False, rng: np.random.Generator | int | None = None) -> None:
         self.lam = lam
+        self.average = average
         self.batch_size = batch_size
         self.n_iter = n_iter
         self.bias_scale = bias_scale
@@ -115,6 +121,7 @@ class PegasosSVM:
         weights = balanced_weights(y) if self.balanced else None
         k = len(y) if self.batch_size is None else min(self.batch_size, len(y))
         full = self._augment(X) if k == len(y) else None
+        total, count = np.zeros_like(self.coef_), 0
         for _ in range(self.n_iter if n_iter is None else n_iter):
             self.t_ += 1
             t = self.t_ if self.max_t is None else min(self.t_, self.max_t)
@@ -124,11 +131,15 @@ class PegasosSVM:
                                           None if weights is None else weights[idx])
             else:
                 self.coef_ = pegasos_step(self.coef_, full, y, t, self.lam, weights)
+            total += self.coef_
+            count += 1
+        if count:
+            self.avg_coef_ = total / count
         return self
 
     def fit(self, X: np.ndarray, y: np.ndarray) -> "PegasosSVM":
         """Train from scratch (forget any previous ``w``)."""
-        for name in ("coef_", "t_", "rng_"):
+        for name in ("coef_", "t_", "rng_", "avg_coef_"):
             if hasattr(self, name):
                 delattr(self, name)
         return self.partial_fit(X, y)
@@ -136,7 +147,8 @@ class PegasosSVM:
     def decision_function(self, X: np.ndarray) -> np.ndarray:
         """Signed scores ``<w, [x, bias_scale]>``, ``(K,)``."""
         X = np.asarray(X, dtype=float)
-        return X @ self.coef_[:-1] + self.bias_scale * self.coef_[-1]
+        w = self.avg_coef_ if self.average and hasattr(self, "avg_coef_") else self.coef_
+        return X @ w[:-1] + self.bias_scale * w[-1]
 
     def objective(self, X: np.ndarray, y: np.ndarray) -> float:
         """The (class-weighted) SVM objective of the current ``w`` on ``(X, y)``."""
