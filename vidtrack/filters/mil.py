@@ -65,7 +65,7 @@ Extensions beyond the seed (documented departures, each switchable):
   displacement from the inlier-based centre (in box units).  A match below
   ``ncc_min`` keeps the superpixel centre; the measurement's quality falls
   linearly to 0 as the match falls from ``ncc_min`` to ``ncc_floor`` (by
-  default the two are equal: a match under 0.55 drops the measurement).  A
+  default the two are equal: a match under 0.45 drops the measurement).  A
   partly occluded object gives a biased inlier centroid: better to coast on
   the prediction (``lost``) than to follow it back (on ``data/sample.mp4``
   following it reversed the velocity and the track never re-acquired);
@@ -548,8 +548,8 @@ class MILMeasurer:
                  spatial_prior: float = 1.0, learn_above: float = 0.5, inlier_bonus: float = 0.5,
                  motion_weight: float = 0.1, size_coverage: float = 0.6, positive_margin: float = 0.0,
                  outliers_negative: bool = True, lost_bag: bool = True, refine: str = "ncc",
-                 ncc_radius: float = 0.3, ncc_min: float = 0.55, ncc_rate: float = 0.05,
-                 ncc_motion: float = 0.4, ncc_reacquire: float = 0.7, ncc_floor: float | None = 0.55,
+                 ncc_radius: float = 0.3, ncc_min: float = 0.45, ncc_rate: float = 0.05,
+                 ncc_motion: float = 0.4, ncc_reacquire: float = 0.7, ncc_floor: float | None = 0.45,
                  ncc_scales: tuple[float, ...] = (), ncc_scale_margin: float = 0.01, ncc_from_prior: bool = False,
                  svm_average: bool = False, ncc_combine: str = "mean",
                  rng: np.random.Generator | int | None = None) -> None:
