@@ -70,7 +70,11 @@ Extensions beyond the seed (documented departures, each switchable):
   the prediction (``lost``) than to follow it back (on ``data/sample.mp4``
   following it reversed the velocity and the track never re-acquired);
 * the measurement noise ``r_centre = 0.08`` (was 0.15 for the superpixel-only
-  centre): the refined centre is more precise;
+  centre): the refined centre is more precise; while lost the velocities
+  decay by ``coast_damping = 0.5`` per frame (was 0.7): a long coast on a
+  velocity learned just before the loss carried the prediction away on David
+  more often than it carried it through an occlusion (re-acquisition, below,
+  handles the occluder of ``data/sample.mp4`` either way);
 * re-acquisition: with no inlier measurement the template is searched over
   the whole covariance-enlarged window (``lam sigma`` around the prediction)
   and accepted above ``ncc_reacquire``;
@@ -341,7 +345,7 @@ class MILKalmanFilter:
 
     def __init__(self, *, q_centre: float = 0.1, q_size: float = 0.004, r_centre: float = 0.08,
                  r_size: float = 50.0, initial_sigma: float = 0.05, lost_below: float = 0.15,
-                 gate: float = 25.0, coast_damping: float = 0.7,
+                 gate: float = 25.0, coast_damping: float = 0.5,
                  size_limits: tuple[float, float] = (0.5, 2.0)) -> None:
         self.q_centre = q_centre
         self.q_size = q_size
