@@ -24,7 +24,7 @@ install-dev: $(VENV)/.installed-dev
 demo: install
 	@mkdir -p $(OUT)
 	$(BIN)/vidtrack data/sample.mp4 --init-box $$(head -n 1 data/sample_groundtruth.txt) \
-		--filter $${FILTER:-kalman-cv} -o $(OUT)/demo.mp4 --boxes $(OUT)/demo_boxes.txt --log $(OUT)/demo_log.csv
+		--filter $${FILTER:-mil} -o $(OUT)/demo.mp4 --boxes $(OUT)/demo_boxes.txt --log $(OUT)/demo_log.csv
 	@echo "demo: annotated video $(OUT)/demo.mp4, boxes $(OUT)/demo_boxes.txt, per-frame log $(OUT)/demo_log.csv"
 
 test: install-dev
