@@ -327,6 +327,18 @@ def embedded_matrix(G: np.ndarray) -> np.ndarray:
     return F.reshape(C ** n, C ** n)
 
 
+def history_prior(c: np.ndarray, order: int) -> np.ndarray:
+    """``c`` repeated over the whole history of the embedded model: ``c ⊗ c ⊗ ... ⊗ c`` (``order`` factors).
+
+    The first-frame prior of an order-``n`` state ``W[x_k, ..., x_{k-n+1}]``
+    when only the current position's channel vector ``c`` is known.
+    """
+    W = c
+    for _ in range(order - 1):
+        W = np.multiply.outer(W, c)
+    return W
+
+
 def shift_matrix(n: int, shift: float) -> np.ndarray:
     """Column-stochastic ``(n, n)`` matrix translating a channel vector by ``shift`` channels.
 
@@ -475,24 +487,13 @@ class PlanarCBT:
 
     def initialize_at(self, point) -> None:
         """Prior concentrated at ``point`` over the whole history."""
-        self.W_ = []
-        for d, b in enumerate(self.bases):
-            c = encode(point[d], b)
-            W = c
-            for _ in range(self.order - 1):
-                W = np.multiply.outer(W, c)
-            self.W_.append(W)
+        self.W_ = [history_prior(encode(point[d], b), self.order) for d, b in enumerate(self.bases)]
         self.post_ = np.multiply.outer(encode(point[0], self.bases[0]), encode(point[1], self.bases[1]))
 
     def initialize_empirical(self, points, weights=None) -> None:
         """First-frame empirical prior: every detection of the first frame, over the whole history."""
-        self.W_ = []
-        for d, b in enumerate(self.bases):
-            c = encode_samples(np.asarray(points)[:, d], b, weights)
-            W = c
-            for _ in range(self.order - 1):
-                W = np.multiply.outer(W, c)
-            self.W_.append(W)
+        self.W_ = [history_prior(encode_samples(np.asarray(points)[:, d], b, weights), self.order)
+                   for d, b in enumerate(self.bases)]
         self.post_ = encode_nd(points, self.bases, None if weights is None else normalized(np.asarray(weights, float)))
 
     def predict(self) -> None:
@@ -706,13 +707,8 @@ class CBTFilter:
         self.counts_ = [np.zeros_like(D) for D in self.D_]
         self.G_ = [position_conditional(D, self.d_basis_, b, self.scale_) for D, b in zip(self.D_, self.bases_)]
         centre = box.center
-        self.W_ = []  # first-frame prior: the initial centre over the whole history
-        for axis, b in enumerate(self.bases_):
-            c = encode(centre[axis], b)
-            W = c
-            for _ in range(self.order - 1):
-                W = np.multiply.outer(W, c)
-            self.W_.append(W)
+        # First-frame prior: the initial centre over the whole history.
+        self.W_ = [history_prior(encode(centre[axis], b), self.order) for axis, b in enumerate(self.bases_)]
         self.history_ = [centre.copy()]
         self.since_learn_ = 0
         self.modes_: list[tuple[np.ndarray, float]] = []

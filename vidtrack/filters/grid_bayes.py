@@ -43,19 +43,6 @@ def grid_predict_separable(p: np.ndarray, transitions: list[np.ndarray]) -> np.n
     return out
 
 
-def grid_update(p: np.ndarray, likelihood: np.ndarray) -> tuple[np.ndarray, float]:
-    """Update ``p ∝ likelihood * p``; returns the posterior and the evidence ``sum likelihood * p``.
-
-    If the evidence underflows to zero the prior is kept (a measurement no grid
-    point explains carries no information about which point is right).
-    """
-    post = likelihood * p
-    evidence = float(post.sum())
-    if not np.isfinite(evidence) or evidence <= 0:
-        return p, 0.0
-    return post / evidence, evidence
-
-
 def grid_update_log(p: np.ndarray, log_likelihood: np.ndarray) -> np.ndarray:
     """Update with a log-likelihood (numerically safe for sharp likelihoods)."""
     log_post = np.log(np.maximum(p, 1e-300)) + log_likelihood

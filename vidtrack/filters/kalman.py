@@ -40,11 +40,6 @@ class KalmanUpdate:
     S: np.ndarray
     log_likelihood: float
 
-    @property
-    def mahalanobis2(self) -> float:
-        """Squared Mahalanobis distance ``y' S^-1 y`` of the innovation."""
-        return float(self.innovation @ np.linalg.solve(self.S, self.innovation))
-
 
 def kf_predict(x: np.ndarray, P: np.ndarray, F: np.ndarray, Q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Kalman prediction: ``x = F x``, ``P = F P F' + Q``."""
@@ -153,10 +148,6 @@ class KalmanFilter:
         self.x_, self.P_ = result.x, result.P
         self.last_update_ = result
         return result
-
-    def likelihood_of(self, z: np.ndarray, R: np.ndarray | None = None) -> KalmanUpdate:
-        """What :meth:`update` would return, without changing the state."""
-        return kf_update(self.x_, self.P_, z, self.H, self.R if R is None else R)
 
 
 def measured_axis_model(model: str, *, dt: float, q: float, r: float, n_measured: int = 2,

@@ -109,11 +109,6 @@ class NCCScoreMapMeasurer:
                         quality=float(np.clip(peak, 0.0, 1.0)), search_region=shown,
                         stages={"score_map": scores})
 
-    def score_at(self, frame: Frame, box: Box) -> float:
-        """NCC of the current template at ``box`` (used for confidences)."""
-        patch = self._patch(to_gray(frame.image), box)
-        return float(cv2.matchTemplate(patch, self.template_, cv2.TM_CCOEFF_NORMED)[0, 0])
-
     def learn(self, frame: Frame, posterior: Estimate) -> None:
         if posterior.status != "tracking" or self.last_peak_ < self.learn_above:
             return
