@@ -159,3 +159,22 @@ def test_face_score_map_from_detections():
     assert abs(best.x - truth.x) <= 1 and abs(best.y - truth.y) <= 1
     assert smap.quality == pytest.approx(0.9)
     assert smap.stages["detections"].shape == (2, 3)
+
+
+@pytest.mark.parametrize("name", ["nh-face", "pf-face", "bayes-face"])
+def test_face_recipes_follow_faceocc1(name):
+    """The ``-face`` recipes (what ``vidtrack eval --filter nh-face`` runs) follow a real face."""
+    from conftest import SEQUENCES
+    from vidtrack.eval.datasets import load_sequence
+    from vidtrack.sources import ImageFolderSource
+
+    folder = SEQUENCES / "FaceOcc1"
+    if not folder.is_dir():
+        pytest.skip("shared benchmark sequences not present")
+    sequence = load_sequence(folder)
+    tracker = build_tracker(name, seed=0)
+    frames = iter(ImageFolderSource(sequence.path, files=list(sequence.files[:40])))
+    tracker.initialize(next(frames), sequence.to_pixels(sequence.ground_truth_box(0)))
+    errors = [np.hypot(*(tracker.step(frame).box.center - sequence.to_pixels(sequence.ground_truth_box(row)).center))
+              for row, frame in enumerate(frames, start=1)]
+    assert np.mean(errors) < 15.0

@@ -5,7 +5,9 @@ Chaudhuri, Freund & Hsu, "An Online Learning-based Framework for Tracking"
 and ``bayes`` (exact grid Bayes) all read the same
 :class:`~vidtrack.types.ScoreMap`, from the online NCC template detector
 (``detector="ncc"``, default) or OpenCV's cascade face detector
-(``detector="face"``, the seed's motivating example).
+(``detector="face"``, the seed's motivating example).  ``nh-face``,
+``pf-face`` and ``bayes-face`` are the same trackers with the face detector
+as their default, so ``vidtrack eval`` can compare them on face sequences.
 """
 
 from __future__ import annotations
@@ -32,8 +34,8 @@ def make_measurer(detector: str = "ncc", **options):
     raise UsageError(f"unknown detector {detector!r}; valid detectors: {', '.join(DETECTORS)}")
 
 
-def _builder(make_filter):
-    def build(seed=None, detector: str = "ncc", **options) -> Tracker:
+def _builder(make_filter, default_detector: str = "ncc"):
+    def build(seed=None, detector: str = default_detector, **options) -> Tracker:
         measurer = make_measurer(detector)
         unknown = set(options)
         if unknown:
@@ -49,4 +51,10 @@ RECIPES = {
                  _builder(lambda rng: ParticleBoxFilter(rng=rng))),
     "bayes": Recipe("exact grid Bayes filter on a sliding-detector score map (NormalHedge paper's comparator)",
                     _builder(lambda rng: GridBayesBoxFilter(rng=rng))),
+    "nh-face": Recipe("nh on OpenCV's Haar face-detector score map (the seed's motivating example)",
+                      _builder(lambda rng: NormalHedgeBoxFilter(rng=rng), "face")),
+    "pf-face": Recipe("pf on OpenCV's Haar face-detector score map",
+                      _builder(lambda rng: ParticleBoxFilter(rng=rng), "face")),
+    "bayes-face": Recipe("bayes on OpenCV's Haar face-detector score map",
+                         _builder(lambda rng: GridBayesBoxFilter(rng=rng), "face")),
 }
