@@ -24,7 +24,11 @@ read the same measurements:
   outliers that product underflows to 0 for every particle; the weights then
   stay uniform and the PF goes blind.  This reproduces the seed's PF column:
   good at ``rho = 0``, degraded at ``rho = 0.01``, and flat at
-  ``81.70 +- 1.74`` -- the RMS of its true path -- for ``rho >= 0.05``;
+  ``81.70 +- 1.74`` -- the RMS of its true path -- for ``rho >= 0.05``.
+  (The exponent is about 500 at ``rho = 0``, 1000 at ``rho = 0.01`` and
+  3000 at ``rho = 0.05``; float64 underflows below ``e^-745``.  De Freitas'
+  demos add ``1e-99`` to each weight, which here would blind the PF even at
+  ``rho = 0``, against the seed's 1.23, so the floor is left out);
 * **PF-log** -- the same SIR filter
   (:func:`vidtrack.filters.particle.sir_step_batch`) with its weights
   computed in logs, i.e. numerically sound.  It never goes blind.  At
