@@ -21,6 +21,15 @@ Online Learning-based Framework for Tracking" (UAI 2010): the same score map
   frame with the same random walk and likelihood; cells outside the search
   window are given the score ``outside_score`` (the detector's "background").
 
+Defaults were chosen the way the seed chose its own (it tuned ``sigma_d``
+for Bayes and ``Sigma_*``, ``alpha`` for NH): by the mean success AUC on the
+seven shared benchmark sequences, the same protocol for all three filters,
+averaged over tracker seeds 0-2 and confirmed on seeds 3-5 -- NH
+``sigma_star`` 0.15 -> 0.25 box sizes and ``alpha`` 0.3 -> 0.4 (0.43 -> 0.53),
+PF ``sigma_d`` 0.05 -> 0.2 (0.48 -> 0.55), grid Bayes ``sigma_d`` 0.05 -> 0.1
+(0.49 -> 0.53).  Tuned alike, the three are within a few hundredths of each
+other on the NCC template map.
+
 All three mark the target ``lost`` when the map's peak score
 (``ScoreMap.quality``) is below ``lost_below``: they then skip the update and
 report their prediction.  Confidence is the weight (posterior) mass within
@@ -118,7 +127,7 @@ class NormalHedgeBoxFilter(_CentreBoxFilter):
         Seed or Generator.
     """
 
-    def __init__(self, n_actions: int = 100, alpha: float = 0.3, sigma_star: float = 0.15,
+    def __init__(self, n_actions: int = 100, alpha: float = 0.4, sigma_star: float = 0.25,
                  clip: tuple[float, float] = (-1.0, 1.0), outside_score: float = -1.0, lost_below: float = 0.35,
                  radius: float = 0.15, velocity_gain: float = 0.2, coast_damping: float = 0.5,
                  window: float = 0.0, prune_below: float = 0.3,
@@ -225,7 +234,7 @@ class ParticleBoxFilter(_CentreBoxFilter):
         As in :class:`NormalHedgeBoxFilter`.
     """
 
-    def __init__(self, n_particles: int = 100, sigma_d: float = 0.05, sigma_s: float = 0.1,
+    def __init__(self, n_particles: int = 100, sigma_d: float = 0.2, sigma_s: float = 0.1,
                  outside_score: float = 0.0, lost_below: float = 0.35, radius: float = 0.15,
                  rng: np.random.Generator | int | None = None) -> None:
         self.n_particles = n_particles
@@ -293,7 +302,7 @@ class GridBayesBoxFilter(_CentreBoxFilter):
         As in :class:`ParticleBoxFilter`.
     """
 
-    def __init__(self, cell: float = 0.05, sigma_d: float = 0.05, sigma_s: float = 0.1,
+    def __init__(self, cell: float = 0.05, sigma_d: float = 0.1, sigma_s: float = 0.1,
                  outside_score: float = 0.0, lost_below: float = 0.35, radius: float = 0.15,
                  min_spacing: float = 2.0, rng: np.random.Generator | int | None = None) -> None:
         self.cell = cell
