@@ -105,3 +105,39 @@ def test_bad_arguments_raise_usage_errors():
         nh_1d.run(_args(rhos="0,x"), lambda it, **kw: it)
     with pytest.raises(UsageError):
         nh_1d.run(_args(sigmas="-1"), lambda it, **kw: it)
+
+
+# ------------------------------------------------------------------ the CLI
+
+
+def test_reproduce_help_shows_the_experiments_own_options(capsys):
+    from vidtrack.cli import main
+
+    with pytest.raises(SystemExit) as exit_info:
+        main(["reproduce", "nh-1d", "--help"])
+    assert exit_info.value.code == 0
+    out = capsys.readouterr().out
+    assert "--true-path" in out and "--plot" in out and "--runs" in out
+
+
+def test_reproduce_nh_1d_writes_the_issues_json_layout(tmp_path, capsys):
+    from vidtrack.cli import main
+
+    out = tmp_path / "t.json"
+    assert main(["reproduce", "nh-1d", "--runs", "2", "--rhos", "0,0.05", "--sigmas", "1", "--steps", "40",
+                 "--json", str(out), "-q"]) == 0
+    table = capsys.readouterr().out
+    assert "Low Noise (sigma_o = 1)" in table and "PF-log" in table
+    rows = json.loads(out.read_text())["rows"]
+    assert [(r["sigma_o"], r["rho"]) for r in rows] == [(1.0, 0.0), (1.0, 0.05)]
+    for row in rows:
+        for name in ("NH", "Bayes", "PF", "PF-log"):
+            assert set(row[name]) == {"mean", "sd"} and np.isfinite(row[name]["mean"])
+
+
+def test_reproduce_unknown_experiment_is_one_line_exit_2(capsys):
+    from vidtrack.cli import main
+
+    assert main(["reproduce", "nh-2d"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "unknown experiment" in err[0]

@@ -185,11 +185,18 @@ def run_filters(argv: Sequence[str]) -> int:
 def run_reproduce(argv: Sequence[str]) -> int:
     from .experiments import EXPERIMENTS
 
-    parser = OneLineParser(prog="vidtrack reproduce",
-                           description="Reproduce a table of one of the papers vidtrack implements.")
+    parser = OneLineParser(prog="vidtrack reproduce", add_help=False,
+                           description="Reproduce a table of one of the papers vidtrack implements; "
+                                       "`vidtrack reproduce NAME --help` shows the experiment's options.")
     parser.add_argument("name", nargs="?", help=f"experiment: {', '.join(EXPERIMENTS)}")
     parser.add_argument("--list", action="store_true", help="list the experiments")
+    parser.add_argument("-h", "--help", action="store_true", help="show this help message and exit")
     known, rest = parser.parse_known_args(argv)
+    if known.help and not known.name:
+        parser.print_help()
+        return 0
+    if known.help:
+        rest = [*rest, "--help"]   # the experiment's own parser lists its options
     if known.list or not known.name:
         for name, module_name in EXPERIMENTS.items():
             try:
