@@ -34,8 +34,9 @@ read the same measurements:
   computed in logs, i.e. numerically sound.  It never goes blind.  At
   ``sigma_o = 1`` it beats the exact Bayes filter at every ``rho > 0`` (its
   100 particles stay near the estimate, where far-off outliers cannot pull
-  them); at ``sigma_o = 8`` it is worse than Bayes at every ``rho``, by far
-  once ``rho >= 0.05`` (100 particles lose the target in heavy noise).  So
+  them); at ``sigma_o = 8`` it is worse than Bayes at every ``rho <= 0.2``, by
+  far once ``rho >= 0.05`` (100 particles lose the target in heavy noise;
+  at ``rho = 0.4`` both are lost about equally often).  So
   the seed's conclusion that the PF degrades more than Bayes holds at high
   noise, but its flat PF rows are a floating-point artefact, not a property
   of particle filtering; both columns are printed so the two can be
