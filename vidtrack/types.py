@@ -67,6 +67,11 @@ class Box:
     def area(self) -> float:
         return max(self.w, 0.0) * max(self.h, 0.0)
 
+    @property
+    def scale(self) -> float:
+        """``sqrt(area)`` (at least 1): the box's linear size, the unit of the filters' noise parameters."""
+        return float(np.sqrt(max(self.area, 1.0)))
+
     def as_array(self) -> np.ndarray:
         """``[x, y, w, h]`` float array."""
         return np.array([self.x, self.y, self.w, self.h], dtype=float)

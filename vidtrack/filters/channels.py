@@ -689,7 +689,7 @@ class CBTFilter:
         width = frame.width if frame is not None else int(box.x + 4 * box.w)
         height = frame.height if frame is not None else int(box.y + 4 * box.h)
         self.size_ = box.size.copy()
-        self.scale_ = float(np.sqrt(max(box.area, 1.0)))
+        self.scale_ = box.scale
         spacing = float(np.clip(self.spacing_boxes * self.scale_, self.min_spacing, self.max_spacing))
         self.bases_ = (ChannelBasis.with_spacing(0.0, float(width), spacing),
                        ChannelBasis.with_spacing(0.0, float(height), spacing))

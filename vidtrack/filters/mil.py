@@ -358,7 +358,7 @@ class MILKalmanFilter:
         self.size_limits = size_limits
 
     def initialize(self, box: Box, frame: Frame | None = None) -> None:
-        self.scale_ = float(np.sqrt(max(box.area, 1.0)))
+        self.scale_ = box.scale
         self.F_, self.Q_, self.C_ = mil_motion_model(self.scale_, q_centre=self.q_centre, q_size=self.q_size)
         self.x_ = state_from_box(box)
         self.P_ = np.eye(8) * (self.initial_sigma * self.scale_) ** 2
@@ -672,7 +672,7 @@ class MILMeasurer:
         self.last_: _FrameData | None = None
         self.template0_ = self.template_ = None
         self.ncc_peak_ = -1.0
-        self.box_scale_ = float(np.sqrt(max(box.area, 1.0)))
+        self.box_scale_ = box.scale
         out = self._superpixels(frame, box.center, box.size, np.zeros(2))
         if out is None:
             self.initial_ = (np.zeros((0, 1)), np.zeros(0), 0)

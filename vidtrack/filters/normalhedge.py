@@ -128,6 +128,13 @@ def normalhedge_weights(regrets: np.ndarray, log_c: np.ndarray | None = None) ->
     return w / w.sum(axis=-1, keepdims=True)
 
 
+def discounted_regrets(regrets: np.ndarray, weights: np.ndarray, losses: np.ndarray,
+                       alpha: float) -> tuple[np.ndarray, np.ndarray]:
+    """``(l_A, R)``: ``l_A = sum_i w_i l_i`` and ``R_i <- (1 - alpha) R_i + (l_A - l_i)`` (Algorithms 1-2)."""
+    learner_loss = np.sum(weights * losses, axis=-1, keepdims=True)   # l_A,t
+    return learner_loss, (1.0 - alpha) * regrets + (learner_loss - losses)
+
+
 def normalhedge_step(regrets: np.ndarray, weights: np.ndarray, losses: np.ndarray,
                      alpha: float = 0.0) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """One round of (discounted) NormalHedge.
@@ -140,8 +147,7 @@ def normalhedge_step(regrets: np.ndarray, weights: np.ndarray, losses: np.ndarra
     -------
     regrets, weights, log_c
     """
-    learner_loss = np.sum(weights * losses, axis=-1, keepdims=True)   # l_A,t
-    regrets = (1.0 - alpha) * regrets + (learner_loss - losses)          # R_i,t
+    _, regrets = discounted_regrets(regrets, weights, losses, alpha)
     log_c = normalhedge_log_c(regrets)
     return regrets, normalhedge_weights(regrets, log_c), log_c
 
@@ -209,8 +215,7 @@ def nh_tracking_step(states: np.ndarray, regrets: np.ndarray, prev_weights: np.n
     ``next_states`` (``F(x_{i,t})``, the states of round ``t + 1``).
     """
     losses = losses_fn(states)
-    learner_loss = np.sum(prev_weights * losses, axis=-1, keepdims=True)   # l_A,t = sum w_{i,t-1} l_i,t
-    new_regrets = (1.0 - alpha) * regrets + (learner_loss - losses)         # R_i,t
+    learner_loss, new_regrets = discounted_regrets(regrets, prev_weights, losses, alpha)   # l_A,t; R_i,t
     deleted = new_regrets <= 0                                              # X = {i : R_i,t <= 0}
     if prune_below > 0:
         n = new_regrets.shape[-1]

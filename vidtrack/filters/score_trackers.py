@@ -61,10 +61,6 @@ def score_at_centres(smap: ScoreMap, centres: np.ndarray, outside: float = 0.0) 
                            cval=outside)
 
 
-def box_scale(box: Box) -> float:
-    return float(np.sqrt(max(box.area, 1.0)))
-
-
 def _usable(measurement: Measurement | None, lost_below: float) -> bool:
     return (isinstance(measurement, ScoreMap) and measurement.scores.size > 0
             and float(measurement.quality) >= lost_below)
@@ -87,7 +83,7 @@ class _CentreBoxFilter:
     def _start(self, box: Box, frame: Frame | None) -> None:
         """Book-keeping shared by every ``initialize``: box size, scale, frame size."""
         self.size_ = box.size.copy()
-        self.scale_ = box_scale(box)
+        self.scale_ = box.scale
         self.frame_size_ = None if frame is None else (frame.width, frame.height)
 
     @property
@@ -148,11 +144,10 @@ class NormalHedgeBoxFilter(_CentreBoxFilter):
     def initialize(self, box: Box, frame: Frame | None = None) -> None:
         self._start(box, frame)
         sigma = self.sigma_star * self.scale_
-        self.core_ = NormalHedgeTracker(self.n_actions, self.alpha, sigma, dynamics=None, rng=self.rng,
+        rng = np.random.default_rng(self.rng)   # one stream: the initial draw, then the tracker's re-sampling
+        self.core_ = NormalHedgeTracker(self.n_actions, self.alpha, sigma, dynamics=None, rng=rng,
                                         prune_below=self.prune_below)
-        init_rng = np.random.default_rng(self.core_.rng)
-        self.core_.initialize(box.center + sigma * init_rng.standard_normal((self.n_actions, 2)))
-        self.core_.rng_ = init_rng
+        self.core_.initialize(box.center + sigma * rng.standard_normal((self.n_actions, 2)))
         self.estimate_ = Estimate(box, np.eye(2) * sigma ** 2, 1.0, TRACKING)
         self.velocity_ = np.zeros(2)
         self.last_centre_ = box.center.copy()
@@ -192,11 +187,10 @@ class NormalHedgeBoxFilter(_CentreBoxFilter):
     def update(self, measurement: Measurement | None) -> Estimate:
         prior = self.estimate_
         quality = 0.0 if measurement is None else float(getattr(measurement, "quality", 0.0))
-        scalars = {"c_t": self.core_.c, "live_actions": float(self.core_.live_actions)}
-        self.stages_ = {"particles": np.column_stack([self.core_.states_, self.core_.weights_])}
         if not _usable(measurement, self.lost_below):
             self.velocity_ = self.velocity_ * self.coast_damping   # coast to a stop, do not fly off
-            return self._lost(prior, quality, scalars)
+            self.stages_ = {"particles": np.column_stack([self.core_.states_, self.core_.weights_])}
+            return self._lost(prior, quality, {"c_t": self.core_.c, "live_actions": float(self.core_.live_actions)})
         qmap = self.loss_map(measurement)
         centre = self.core_.step(lambda s: self.losses(qmap, s))
         centre = self._keep_in_frame(centre)
@@ -315,14 +309,13 @@ class GridBayesBoxFilter(_CentreBoxFilter):
         self.rng = rng
 
     def initialize(self, box: Box, frame: Frame | None = None) -> None:
-        self.size_ = box.size.copy()
-        self.scale_ = box_scale(box)
-        width, height = (frame.width, frame.height) if frame is not None else (
-            int(box.x + 3 * box.w) + 1, int(box.y + 3 * box.h) + 1)
-        self.frame_size_ = None if frame is None else (width, height)
+        self._start(box, frame)
+        width, height = self.frame_size_ or (int(box.x + 3 * box.w) + 1, int(box.y + 3 * box.h) + 1)
         spacing = max(self.min_spacing, self.cell * self.scale_)
         self.xs_ = np.arange(0.0, width + spacing / 2, spacing)
         self.ys_ = np.arange(0.0, height + spacing / 2, spacing)
+        self.gx_, self.gy_ = np.meshgrid(self.xs_, self.ys_)                 # cell centres, once
+        self.centres_ = np.column_stack([self.gx_.ravel(), self.gy_.ravel()])
         sigma = max(self.sigma_d * self.scale_, 0.5 * spacing)
         self.transitions_ = [gaussian_transition(self.ys_, sigma), gaussian_transition(self.xs_, sigma)]
         p = np.zeros((len(self.ys_), len(self.xs_)))
@@ -358,12 +351,11 @@ class GridBayesBoxFilter(_CentreBoxFilter):
         if not _usable(measurement, self.lost_below):
             self.stages_ = {"particles": self._points()}
             return self._lost(prior, quality, {})
-        gx, gy = np.meshgrid(self.xs_, self.ys_)
-        scores = score_at_centres(measurement, np.column_stack([gx.ravel(), gy.ravel()]), self.outside_score)
+        scores = score_at_centres(measurement, self.centres_, self.outside_score)
         loglik = score_log_likelihood(scores, self.sigma_s).reshape(self.p_.shape)
         self.p_ = grid_update_log(self.p_.ravel(), loglik.ravel()).reshape(self.p_.shape)
         mean, cov = self._moments()
-        d2 = (gx - mean[0]) ** 2 + (gy - mean[1]) ** 2
+        d2 = (self.gx_ - mean[0]) ** 2 + (self.gy_ - mean[1]) ** 2
         concentration = float(self.p_[d2 <= (self.radius * self.scale_) ** 2].sum())
         self.stages_ = {"particles": self._points()}
         confidence = concentration * float(np.clip(quality, 0.0, 1.0))

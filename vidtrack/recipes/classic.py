@@ -25,15 +25,11 @@ LOST_BELOW = 0.4
 Q_SCALE = {"dr": 0.08, "cv": 0.02, "ca": 0.006}
 
 
-def box_scale(box: Box) -> float:
-    return float(np.sqrt(max(box.area, 1.0)))
-
-
 def kalman_core(model: str, box: Box, q_scale: float | None = None, order: int | None = None) -> KalmanFilter:
     """A 2-axis Kalman filter with ``model`` dynamics and noise scaled to ``box``."""
-    q = ((Q_SCALE[model] if q_scale is None else q_scale) * box_scale(box)) ** 2
+    q = ((Q_SCALE[model] if q_scale is None else q_scale) * box.scale) ** 2
     F, Q, H = motion_model(model, q=q, n_axes=2, order=order)
-    return KalmanFilter(F, Q, H, np.eye(2) * (0.1 * box_scale(box)) ** 2)
+    return KalmanFilter(F, Q, H, np.eye(2) * (0.1 * box.scale) ** 2)
 
 
 def imm_core(box: Box, models=("dr", "cv", "ca"), stay: float = 0.95) -> IMMEstimator:

@@ -19,7 +19,7 @@ from ..filters.svk import SupportVectorKalman, SVKCentreFilter
 from ..measure.meanshift import MeanShiftMeasurer
 from ..tracker import Recipe, Tracker
 from ..types import Box
-from .classic import Q_SCALE, box_scale
+from .classic import Q_SCALE
 
 #: SVR parameters on video.  The paper does not give C for its video
 #: experiments; C = 2^-10 (its linear-motion setting) tracked best on four of
@@ -31,7 +31,7 @@ SVK_DEFAULTS = {"C": 2.0 ** -10, "epsilon": 0.1, "window": 10, "n_folds": 5, "q_
 
 def svk_core(box: Box, **params) -> SupportVectorKalman:
     """A 2-axis SVK core for ``box``: CV bootstrap model, ``R = (0.1 s)^2 I``."""
-    s = box_scale(box)
+    s = box.scale
     F0, Q0, H = motion_model("cv", q=(Q_SCALE["cv"] * s) ** 2, n_axes=2)
     return SupportVectorKalman(H, np.eye(2) * (0.1 * s) ** 2, F0, Q0, **{**SVK_DEFAULTS, **params})
 
