@@ -4,7 +4,7 @@ Stages: ``decode`` (reading the frame), the measurer's own stages (for the
 MIL filter ``superpixels``, ``features``, ``svm``, ``graphcut``; a measurer
 reports them in a ``timings_`` dict of accumulated seconds), ``measure
 (other)`` (measurer time not in a named stage), ``filter`` (predict +
-update) and ``learn`` (time in ``learn`` not in a named stage).
+update) and ``learn (other)`` (time in ``learn`` not in a named stage).
 """
 
 from __future__ import annotations

@@ -118,9 +118,7 @@ class CentreFilter:
                 scalars["innovation"] = float(np.linalg.norm(innovation))
             self.size_ = box.size.copy()
             status = TRACKING if quality >= self.lost_below else LOST
-        cov = self._position_cov()
-        scalars["covariance_trace"] = float(np.trace(cov))
-        self.estimate_ = Estimate(self._box(), cov, quality, status, scalars)
+        self.estimate_ = Estimate(self._box(), self._position_cov(), quality, status, scalars)
         return self.estimate_
 
 

@@ -95,6 +95,7 @@ import numpy as np
 from ..learn.graphcut import select_inliers
 from ..learn.pegasos import PegasosSVM
 from ..measure import superpixels as sp
+from ..measure.score_map import to_gray
 from ..types import LOST, TRACKING, Box, Estimate, Frame, Superpixels
 from .kalman import kf_predict, kf_update, motion_model
 
@@ -214,50 +215,6 @@ def locate_inliers(labels: np.ndarray, weights: np.ndarray, box_size: np.ndarray
         c = new
     var = np.array([col @ (us - c[0]) ** 2, row @ (vs - c[1]) ** 2]) / mass
     return c, np.sqrt(12.0 * var + 1.0), mass
-
-
-def locate_window(labels: np.ndarray, evidence: np.ndarray, box_size: np.ndarray, start: np.ndarray, *,
-                  motion_weight: float = 0.1):
-    """Box centre maximising the mean per-pixel evidence under a box-sized window.
-
-    The paper selects the box location on a smoothed score (its fig. 3): here
-    the smoothing is the box-sized mean filter, so the measured centre is
-    where a box of the predicted size covers the most inlier / positive
-    evidence and the least negative, minus ``motion_weight`` times the squared
-    displacement from the prediction in box units.
-
-    Parameters
-    ----------
-    labels
-        ``(h, w) int`` superpixel labels.
-    evidence
-        ``(K,)`` per-superpixel evidence in about [-1, 1].
-    box_size, start
-        Predicted size and centre ``(u, v)`` in region pixels.
-
-    Returns
-    -------
-    (centre ``(2,)``, peak mean evidence)
-    """
-    ev = np.asarray(evidence, np.float32)[labels]
-    bw, bh = max(int(round(box_size[0])), 1), max(int(round(box_size[1])), 1)
-    mean = cv2.boxFilter(ev, -1, (bw, bh), normalize=True, borderType=cv2.BORDER_CONSTANT)
-    h, w = labels.shape
-    us = (np.arange(w) + 0.5 - start[0]) / box_size[0]
-    vs = (np.arange(h) + 0.5 - start[1]) / box_size[1]
-    objective = mean - motion_weight * (vs[:, None] ** 2 + us[None, :] ** 2)
-    v0, u0 = np.unravel_index(int(np.argmax(objective)), objective.shape)
-    # the box filter's anchor is the window centre (odd sizes) or just right of it
-    cu = u0 + 0.5 - (0.5 if bw % 2 == 0 else 0.0)
-    cv = v0 + 0.5 - (0.5 if bh % 2 == 0 else 0.0)
-    return np.array([cu, cv]), float(mean[v0, u0])
-
-
-def grey_image(image: np.ndarray) -> np.ndarray:
-    """``float32`` grey version of a BGR region (what the template refinement matches)."""
-    if image.ndim == 2:
-        return image.astype(np.float32)
-    return cv2.cvtColor(image, cv2.COLOR_BGR2GRAY).astype(np.float32)
 
 
 def cut_patch(grey: np.ndarray, centre: np.ndarray, size: tuple[int, int]) -> np.ndarray | None:
@@ -422,7 +379,6 @@ class MILKalmanFilter:
             self._coast()
             quality = min(quality, self.lost_below * 0.99)
         cov = self.C_ @ self.P_ @ self.C_.T
-        scalars["covariance_trace"] = float(np.trace(cov))
         self.estimate_ = Estimate(self._box(), cov, float(np.clip(quality, 0.0, 1.0)), status, scalars)
         return self.estimate_
 
@@ -494,9 +450,6 @@ class MILMeasurer:
         The inlier extent measures the size only when the inliers cover at
         least this fraction of the predicted box; otherwise the measured size
         is the predicted one (no size information).
-    inlier_bonus, motion_weight
-        ``locate="window"``: evidence ``clip(score, -1, 1) + inlier_bonus * inlier``
-        and the weight of the squared displacement (:func:`locate_window`).
     learn_above
         Only frames whose posterior confidence reaches this add training triples.
     spatial_prior
@@ -523,15 +476,6 @@ class MILMeasurer:
     ncc_floor
         The measurement's quality is scaled by ``(peak - ncc_floor) / (ncc_min - ncc_floor)``
         clipped to [0, 1] (None: not scaled).
-    ncc_scales, ncc_scale_margin
-        Extra template scales tried by the refinement (e.g. ``(0.95, 1.05)``;
-        empty: none); a scale wins over the previous best only by a peak
-        larger by ``ncc_scale_margin``.  With scales the measured size is the
-        predicted size times the winning scale (not the inlier extent), so
-        use with a finite filter ``r_size``.
-    ncc_from_prior
-        Also search ``ncc_radius`` around the predicted centre and keep the
-        better match (guards against a misplaced inlier centroid).
     svm_average
         Score with the average of the Pegasos iterates of the last update
         (:class:`~vidtrack.learn.pegasos.PegasosSVM` ``average``).
@@ -549,12 +493,11 @@ class MILMeasurer:
                  keep_initial: bool = True, anchor_weight: int = 1,
                  bag_scale: float = 1.15, cut_slope: float = 2.0, cut_beta: float = 1.0,
                  feature_order: int = 1, min_inlier_fraction: float = 0.1, locate: str = "smoothed",
-                 spatial_prior: float = 1.0, learn_above: float = 0.5, inlier_bonus: float = 0.5,
-                 motion_weight: float = 0.1, size_coverage: float = 0.6, positive_margin: float = 0.0,
+                 spatial_prior: float = 1.0, learn_above: float = 0.5,
+                 size_coverage: float = 0.6, positive_margin: float = 0.0,
                  outliers_negative: bool = True, lost_bag: bool = True, refine: str = "ncc",
                  ncc_radius: float = 0.3, ncc_min: float = 0.45, ncc_rate: float = 0.05,
                  ncc_motion: float = 0.4, ncc_reacquire: float = 0.7, ncc_floor: float | None = 0.45,
-                 ncc_scales: tuple[float, ...] = (), ncc_scale_margin: float = 0.01, ncc_from_prior: bool = False,
                  svm_average: bool = False, ncc_combine: str = "mean",
                  rng: np.random.Generator | int | None = None) -> None:
         self.lam = lam
@@ -583,8 +526,6 @@ class MILMeasurer:
         self.locate = locate
         self.spatial_prior = spatial_prior
         self.learn_above = learn_above
-        self.inlier_bonus = inlier_bonus
-        self.motion_weight = motion_weight
         self.size_coverage = size_coverage
         self.positive_margin = positive_margin
         self.outliers_negative = outliers_negative
@@ -596,9 +537,6 @@ class MILMeasurer:
         self.ncc_motion = ncc_motion
         self.ncc_reacquire = ncc_reacquire
         self.ncc_floor = ncc_floor
-        self.ncc_scales = tuple(ncc_scales)
-        self.ncc_scale_margin = ncc_scale_margin
-        self.ncc_from_prior = ncc_from_prior
         self.svm_average = svm_average
         self.ncc_combine = ncc_combine
         self.rng = rng
@@ -614,7 +552,7 @@ class MILMeasurer:
         t0 = time.perf_counter()
         size = np.maximum(np.asarray(size, float), 4.0)
         extra = np.minimum(self.lam * np.asarray(sigma, float), self.max_extra * size)
-        want = sp.search_box(center, size, extra, pad=self.pad, lam=1.0)
+        want = sp.search_box(center, size, extra, pad=self.pad)
         scale = min(1.0, self.object_pixels / float(np.sqrt(size[0] * size[1])))
         region = sp.cut_region(frame.image, want, scale=scale)
         if region is None:
@@ -672,13 +610,13 @@ class MILMeasurer:
         self.last_: _FrameData | None = None
         self.template0_ = self.template_ = None
         self.ncc_peak_ = -1.0
-        self.box_scale_ = box.scale
         out = self._superpixels(frame, box.center, box.size, np.zeros(2))
         if out is None:
             self.initial_ = (np.zeros((0, 1)), np.zeros(0), 0)
             return
         region, labels, desc, features = out
-        frac = sp.fraction_inside(labels, region.box_to_region(box))
+        rbox = region.box_to_region(box)
+        frac = sp.fraction_inside(labels, rbox)
         y = np.where(frac >= self.positive_fraction, 1, -1)
         if not np.any(y > 0):  # a box smaller than any superpixel: take the most-inside one
             y[np.argmax(frac)] = 1
@@ -686,20 +624,18 @@ class MILMeasurer:
         # calibrate h: the positives' centroid and extent against the init box
         self.size_ratio_ = np.ones(2)
         self.centre_offset_ = np.zeros(2)
-        rbox = region.box_to_region(box)
         if self.locate == "centroid":
             meas = inlier_measurement(labels, y > 0)
         else:
-            meas = locate_inliers(labels, (y > 0).astype(float), np.array([rbox.w, rbox.h]), rbox.center)
+            meas = locate_inliers(labels, (y > 0).astype(float), rbox.size, rbox.center)
         if meas is not None:
-            self.size_ratio_ = np.clip(np.array([rbox.w, rbox.h]) / meas[1], 0.5, 2.0)
-            self.centre_offset_ = (rbox.center - meas[0]) / np.array([rbox.w, rbox.h])
+            self.size_ratio_ = np.clip(rbox.size / meas[1], 0.5, 2.0)
+            self.centre_offset_ = (rbox.center - meas[0]) / rbox.size
         self.training_ = [self.initial_]
         self._train(self.svm_init_iter)
-        self.template0_ = self.template_ = None
         if self.refine == "ncc":
             tsize = (max(int(round(rbox.w)), 3), max(int(round(rbox.h)), 3))
-            patch = cut_patch(grey_image(region.image), rbox.center, tsize)
+            patch = cut_patch(to_gray(region.image), rbox.center, tsize)
             if patch is not None and float(patch.std()) > 1e-3:
                 self.template0_, self.template_ = patch, patch.copy()
         self.training_ = [] if self.keep_initial else self.training_
@@ -725,7 +661,7 @@ class MILMeasurer:
         area, centroid = sp.label_stats(labels, K)
         region_box = region.box_to_region(prior.box)
         bag_box = region.box_to_region(prior.box.scaled(self.bag_scale))
-        norm = np.array([region_box.w, region_box.h])
+        norm = region_box.size
         extra = np.minimum(self.lam * sigma, self.max_extra * prior.box.size) * region.scale
         if self.lost_bag and prior.status == LOST:  # eq. 8: while lost, look wherever the prediction may be
             bag_box = Box(bag_box.x - extra[0], bag_box.y - extra[1], bag_box.w + 2 * extra[0],
@@ -747,17 +683,8 @@ class MILMeasurer:
         expected = max(region_box.area, 1.0)
         if self.locate == "centroid":
             meas = inlier_measurement(labels, inliers)
-        elif self.locate == "window":
-            meas = None
-            if np.any(inliers):
-                evidence = np.clip(scores, -1.0, 1.0) + self.inlier_bonus * inliers
-                centre, peak = locate_window(labels, evidence, np.array([region_box.w, region_box.h]),
-                                             region_box.center, motion_weight=self.motion_weight)
-                part = inlier_measurement(labels, inliers)
-                meas = (centre, part[1], part[2]) if part is not None else None
         else:
-            meas = locate_inliers(labels, inliers.astype(float), np.array([region_box.w, region_box.h]),
-                                  region_box.center)
+            meas = locate_inliers(labels, inliers.astype(float), region_box.size, region_box.center)
         if meas is not None:
             centre, size, mass = meas
             fraction = mass / expected
@@ -766,28 +693,17 @@ class MILMeasurer:
                 quality = float(min(1.0, fraction / 0.5) / (1.0 + np.exp(-3.0 * margin)))
                 quality = float(np.clip(quality * 2.0, 0.0, 1.0))
                 size = size * self.size_ratio_  # calibrated extent (see initialize)
-                coverage = mass / expected
-                if coverage < self.size_coverage:  # a partial inlier set does not measure the extent
-                    size = np.array([region_box.w, region_box.h])
-                if self.locate != "window":
-                    centre = centre + self.centre_offset_ * size
+                if fraction < self.size_coverage:  # a partial inlier set does not measure the extent
+                    size = region_box.size
+                centre = centre + self.centre_offset_ * size
                 if self.template_ is not None:  # extension: NCC refinement of the inlier-based centre
-                    grey = grey_image(region.image)
-                    box_size = np.array([region_box.w, region_box.h])
-                    found, best = None, 1.0
-                    starts = [centre, region_box.center] if self.ncc_from_prior else [centre]
-                    for k in (1.0, *self.ncc_scales):  # the scale search (if any)
-                        for start in starts:
-                            f = match_templates(grey, self._templates(box_size * k), start,
-                                                self.ncc_radius * box_size, motion_weight=self.ncc_motion,
-                                                combine=self.ncc_combine)
-                            if f is not None and (found is None or f[1] > found[1] + self.ncc_scale_margin):
-                                found, best = f, k
+                    grey = to_gray(region.image)
+                    found = match_templates(grey, self._templates(region_box.size), centre,
+                                            self.ncc_radius * region_box.size, motion_weight=self.ncc_motion,
+                                            combine=self.ncc_combine)
                     self.ncc_peak_ = -1.0 if found is None else found[1]
                     if self.ncc_peak_ >= self.ncc_min:
                         centre = found[0]
-                    if self.ncc_scales:  # the size is measured by the scale search only
-                        size = box_size * (best if self.ncc_peak_ >= self.ncc_min else 1.0)
                     if self.ncc_floor is not None:  # a poor match (occlusion): trust the prediction more
                         quality *= float(np.clip((self.ncc_peak_ - self.ncc_floor)
                                                  / max(self.ncc_min - self.ncc_floor, 1e-6), 0.0, 1.0))
@@ -795,8 +711,8 @@ class MILMeasurer:
                 box = Box.from_center(float(fx), float(fy), size[0] / region.scale, size[1] / region.scale)
         if box is None and self.template_ is not None and self.ncc_reacquire < 1.0:
             # no inliers: look for the template wherever the prediction may be (lam sigma)
-            grey = grey_image(region.image)
-            size = np.array([region_box.w, region_box.h])
+            grey = to_gray(region.image)
+            size = region_box.size
             found = match_templates(grey, self._templates(size), region_box.center,
                                     extra + self.ncc_radius * size, motion_weight=self.ncc_motion,
                                     combine=self.ncc_combine)

@@ -105,7 +105,7 @@ class PegasosSVM:
         X = np.asarray(X, dtype=float)
         return np.hstack([X, np.full((len(X), 1), self.bias_scale)])
 
-    def partial_fit(self, X: np.ndarray, y: np.ndarray, classes=None, *, n_iter: int | None = None) -> "PegasosSVM":
+    def partial_fit(self, X: np.ndarray, y: np.ndarray, *, n_iter: int | None = None) -> "PegasosSVM":
         """Run ``n_iter`` Pegasos iterations on ``(X, y)``, continuing from the current ``w``.
 
         ``y`` in ``{-1, +1}`` (or ``{0, 1}``, mapped to ``{-1, +1}``).
@@ -120,17 +120,17 @@ class PegasosSVM:
             return self
         weights = balanced_weights(y) if self.balanced else None
         k = len(y) if self.batch_size is None else min(self.batch_size, len(y))
-        full = self._augment(X) if k == len(y) else None
+        Xa = self._augment(X)
         total, count = np.zeros_like(self.coef_), 0
         for _ in range(self.n_iter if n_iter is None else n_iter):
             self.t_ += 1
             t = self.t_ if self.max_t is None else min(self.t_, self.max_t)
-            if full is None:  # A_t: a random mini-batch of k samples
+            if k < len(y):  # A_t: a random mini-batch of k samples
                 idx = self.rng_.choice(len(y), size=k, replace=False)
-                self.coef_ = pegasos_step(self.coef_, self._augment(X[idx]), y[idx], t, self.lam,
+                self.coef_ = pegasos_step(self.coef_, Xa[idx], y[idx], t, self.lam,
                                           None if weights is None else weights[idx])
             else:
-                self.coef_ = pegasos_step(self.coef_, full, y, t, self.lam, weights)
+                self.coef_ = pegasos_step(self.coef_, Xa, y, t, self.lam, weights)
             total += self.coef_
             count += 1
         if count:

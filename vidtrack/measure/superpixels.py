@@ -52,22 +52,17 @@ class Region:
         return Box((box.x - self.box.x) * self.scale, (box.y - self.box.y) * self.scale,
                    box.w * self.scale, box.h * self.scale)
 
-    def box_to_frame(self, box: Box) -> Box:
-        """A region box expressed in frame pixels."""
-        return Box(self.box.x + box.x / self.scale, self.box.y + box.y / self.scale,
-                   box.w / self.scale, box.h / self.scale)
 
-
-def search_box(center: np.ndarray, size: np.ndarray, sigma: np.ndarray, *, pad: float = 0.6,
-               lam: float = 3.0) -> Box:
+def search_box(center: np.ndarray, size: np.ndarray, extra: np.ndarray, *, pad: float = 0.6) -> Box:
     """The search region around a predicted box (Wnuk & Soatto, eq. 8).
 
-    Half-extent per axis ``d/2 + pad * d + lam * sigma`` where ``sigma`` is
-    the prediction's centre standard deviation (``sqrt diag(C P C')``); the
-    paper fixes ``lam = 3``.  ``pad`` keeps a ring of background around the
-    box for negatives even when the filter is certain.
+    Half-extent per axis ``d/2 + pad * d + extra``; the caller passes
+    ``extra = lam * sigma`` with ``sigma`` the prediction's centre standard
+    deviation (``sqrt diag(C P C')``; the paper fixes ``lam = 3``), capped as
+    it sees fit.  ``pad`` keeps a ring of background around the box for
+    negatives even when the filter is certain.
     """
-    half = np.asarray(size, float) * (0.5 + pad) + lam * np.asarray(sigma, float)
+    half = np.asarray(size, float) * (0.5 + pad) + np.asarray(extra, float)
     c = np.asarray(center, float)
     return Box(float(c[0] - half[0]), float(c[1] - half[1]), float(2 * half[0]), float(2 * half[1]))
 

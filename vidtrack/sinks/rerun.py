@@ -33,8 +33,9 @@ the default blueprint shows each one over the frame.  An entity that had data
 on the previous frame but has none now (no measurement, a frame without
 ground truth) gets an empty row (or a ``Clear``), so the viewer never shows a
 stale box or stage; rate-limited stages (superpixels) keep showing the last one.
-Styles (colours, labels, draw order) are logged once as static data, so rows
-carry only geometry and pixels.  :func:`read_recording` reads a file back.
+Styles (labels, widths, draw order, point colours) are logged once as static
+data, so rows carry only geometry, pixels and the box colour (which turns
+red while the target is lost).  :func:`read_recording` reads a file back.
 """
 
 from __future__ import annotations
@@ -50,6 +51,7 @@ import rerun as rr
 import rerun.blueprint as rrb
 
 from ..errors import OutputError, UsageError
+from .base import open_text_output
 from ..types import Box, Frame, TrackState
 
 #: Stage names that are point sets ``(N, 2|3)`` ``[x, y, weight]`` in frame coordinates.
@@ -380,14 +382,7 @@ class RerunSink:
 
     def _open(self) -> None:
         if self.path is not None:
-            try:
-                if self.path.is_dir():
-                    raise OutputError(f"cannot write {self.path}: it is a folder")
-                self.path.parent.mkdir(parents=True, exist_ok=True)
-                with open(self.path, "wb"):
-                    pass  # fail now, with a clear message, if the path is not writable
-            except OSError as exc:
-                raise OutputError(f"cannot write {self.path}: {exc.strerror or exc}") from None
+            open_text_output(self.path).close()   # fail now, with a clear message, if the path is not writable
         rec = rr.RecordingStream(self.application_id, recording_id=uuid.uuid4())
         rec.set_log_time_enabled(False)  # one timeline: frame
         rec.set_log_tick_enabled(False)
@@ -460,7 +455,7 @@ class RerunSink:
     def _style(self, path: str, kind: str, name: str = "") -> None:
         """Log ``path``'s colours, labels, widths and draw order once, as static data.
 
-        Frames then carry only geometry and pixels (smaller and faster); entities
+        Frames then carry only geometry, pixels and box colours (smaller and faster); entities
         get a style only when first used, so a recording lists only what it shows.
         """
         if path in self._styled or any(item[1] == path for item in self._pending if item[0] == "style"):
