@@ -187,3 +187,11 @@ def test_ctrl_c_keeps_every_tracked_frame(tmp_path, sample_init_box):
     assert 5 <= tracked < 150
     assert len(boxes.read_text().splitlines()) == tracked
     assert len(log.read_text().splitlines()) == tracked + 1  # header
+
+
+@pytest.mark.parametrize("name,flag,value", [("ms", "--detector", "face"), ("kalman-cv", "--detector", "face"),
+                                             ("opencv-kcf", "--model", "m.npz"), ("nh", "--model", "m.npz")])
+def test_a_cli_option_the_filter_does_not_take_is_one_line_exit_2(name, flag, value, sample_init_box, capsys):
+    assert main([str(SAMPLE_VIDEO), "--init-box", sample_init_box, "--filter", name, flag, value, "-q"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and f"filter {name} does not take option" in err[0]

@@ -80,3 +80,11 @@ def test_follows_a_moving_target(name, sequence):
     errors = [np.hypot(*(s.box.center - b.center)) for s, b in zip(states, boxes)]
     assert np.mean(errors[-10:]) < 6.0, f"{name} drifted: mean centre error {np.mean(errors[-10:]):.1f} px"
     assert sum(s.status == "tracking" for s in states[-10:]) >= 8
+
+
+@pytest.mark.parametrize("name", NAMES)
+def test_an_option_the_recipe_does_not_take_is_a_usage_error(name):
+    from vidtrack.errors import UsageError
+
+    with pytest.raises(UsageError, match=f"filter {name} does not take option"):
+        build_tracker(name, seed=0, no_such_option=1)

@@ -9,6 +9,7 @@ dict ``RECIPES``; :func:`registry` merges them.
 from __future__ import annotations
 
 import importlib
+import inspect
 from dataclasses import dataclass, field
 from typing import Any, Callable, Mapping, Protocol, runtime_checkable
 
@@ -112,12 +113,21 @@ class Recipe:
     """A named tracker: ``build(seed=..., **overrides) -> Tracker``.
 
     ``defaults`` are the keyword arguments ``build`` receives unless
-    overridden; ``description`` is the one line ``vidtrack filters`` shows.
+    overridden; ``description`` is the one line ``vidtrack filters`` shows;
+    ``options`` names every override ``build`` accepts (:func:`build_tracker`
+    rejects any other with a one-line :class:`~vidtrack.errors.UsageError`).
     """
 
     description: str
     build: Callable[..., Tracker]
     defaults: Mapping[str, Any] = field(default_factory=dict)
+    options: frozenset[str] = frozenset()
+
+
+def constructor_options(*classes: type, exclude: tuple[str, ...] = ()) -> frozenset[str]:
+    """The constructor keywords of ``classes`` (without ``self``, ``rng``, ``seed``, ``exclude``): recipe options."""
+    skip = {"self", "rng", "seed", *exclude}
+    return frozenset(name for cls in classes for name in inspect.signature(cls).parameters if name not in skip)
 
 
 #: Modules of :mod:`vidtrack.recipes` whose ``RECIPES`` dicts make the registry.
@@ -149,12 +159,16 @@ def build_tracker(name: str, *, seed: int | None = None, **overrides: Any) -> Tr
     Raises
     ------
     UsageError
-        For an unknown name; the message lists the valid ones.
+        For an unknown name (the message lists the valid ones) or an
+        override the recipe does not take.
     """
     recipes = registry()
     if name not in recipes:
         raise UsageError(f"unknown filter {name!r}; valid filters: {', '.join(sorted(recipes))}")
     recipe = recipes[name]
+    unknown = set(overrides) - recipe.options
+    if unknown:
+        raise UsageError(f"filter {name} does not take option(s) {', '.join(sorted(unknown))}")
     kwargs = {**recipe.defaults, **overrides}
     tracker = recipe.build(seed=seed, **kwargs)
     tracker.name = name

@@ -135,7 +135,6 @@ class KalmanFilter:
         """Set the state mean and covariance."""
         self.x_ = np.asarray(x0, dtype=float).copy()
         self.P_ = np.asarray(P0, dtype=float).copy()
-        self.last_update_: KalmanUpdate | None = None
 
     def predict(self) -> tuple[np.ndarray, np.ndarray]:
         """Propagate ``(x, P)`` one step; return the prior."""
@@ -146,7 +145,6 @@ class KalmanFilter:
         """Fold in measurement ``z`` (covariance ``R`` or the filter's own)."""
         result = kf_update(self.x_, self.P_, z, self.H, self.R if R is None else R)
         self.x_, self.P_ = result.x, result.P
-        self.last_update_ = result
         return result
 
 

@@ -96,7 +96,6 @@ class SupportVectorKalman:
         self.outputs_: deque[np.ndarray] = deque(maxlen=self.window)
         self.previous_: np.ndarray | None = None
         self.learned_ = False
-        self.last_update_: KalmanUpdate | None = None
 
     @property
     def scalars_(self) -> dict[str, float]:
@@ -117,7 +116,6 @@ class SupportVectorKalman:
         R = self.R if R is None else np.asarray(R, dtype=float)
         result = kf_update(self.x_, self.P_, z, self.H, R)
         self.x_, self.P_ = result.x, result.P
-        self.last_update_ = result
         if self.previous_ is not None:
             self.inputs_.append(self.previous_)
             self.outputs_.append(self.x_.copy())

@@ -13,19 +13,14 @@ from __future__ import annotations
 
 from ..filters.channels import CBTFilter, CBTModel
 from ..measure.detections import DetectionMeasurer
-from ..tracker import Recipe, Tracker
+from ..tracker import Recipe, Tracker, constructor_options
 
-_MEASURER_OPTIONS = ("margin", "lost_margin", "nms_fraction", "min_score", "max_detections")
+_MEASURER_OPTIONS = constructor_options(DetectionMeasurer)
 
 
 def build_cbt(seed=None, model=None, **options) -> Tracker:
     """CBT tracker; ``model`` is the path of a learned model file (or a :class:`CBTModel`)."""
-    from ..errors import UsageError
-
     measurer_options = {k: options.pop(k) for k in list(options) if k in _MEASURER_OPTIONS}
-    unknown = [k for k in options if k not in CBTFilter.__dataclass_fields__]
-    if unknown:
-        raise UsageError(f"cbt does not take option(s) {', '.join(sorted(unknown))}")
     if model is not None and not isinstance(model, CBTModel):
         model = CBTModel.load(model)
     if model is not None:
@@ -34,5 +29,6 @@ def build_cbt(seed=None, model=None, **options) -> Tracker:
 
 
 RECIPES = {
-    "cbt": Recipe("Channel-Based Tracking (cos² channels, learned motion) on NCC detections", build_cbt),
+    "cbt": Recipe("Channel-Based Tracking (cos² channels, learned motion) on NCC detections", build_cbt,
+                  options=_MEASURER_OPTIONS | constructor_options(CBTFilter)),
 }

@@ -15,7 +15,7 @@ from ..filters.box import CentreFilter, PassThroughFilter
 from ..filters.imm import IMMEstimator, sticky_transition_matrix
 from ..filters.kalman import MOTION_ORDERS, KalmanFilter, motion_model
 from ..measure.meanshift import MeanShiftMeasurer
-from ..tracker import Recipe, Tracker
+from ..tracker import Recipe, Tracker, constructor_options
 from ..types import Box
 
 #: Bhattacharyya coefficient below which a mean-shift measurement is not used and the target is lost.
@@ -25,9 +25,9 @@ LOST_BELOW = 0.4
 Q_SCALE = {"dr": 0.08, "cv": 0.02, "ca": 0.006}
 
 
-def kalman_core(model: str, box: Box, q_scale: float | None = None, order: int | None = None) -> KalmanFilter:
+def kalman_core(model: str, box: Box, order: int | None = None) -> KalmanFilter:
     """A 2-axis Kalman filter with ``model`` dynamics and noise scaled to ``box``."""
-    q = ((Q_SCALE[model] if q_scale is None else q_scale) * box.scale) ** 2
+    q = (Q_SCALE[model] * box.scale) ** 2
     F, Q, H = motion_model(model, q=q, n_axes=2, order=order)
     return KalmanFilter(F, Q, H, np.eye(2) * (0.1 * box.scale) ** 2)
 
@@ -55,10 +55,18 @@ def build_imm(seed=None, **options) -> Tracker:
     return Tracker(MeanShiftMeasurer(**options), CentreFilter(imm_core, order=3, lost_below=LOST_BELOW))
 
 
+#: Every mean-shift recipe takes the measurer's parameters as options.
+MEANSHIFT_OPTIONS = constructor_options(MeanShiftMeasurer)
+
 RECIPES = {
-    "ms": Recipe("mean-shift alone on a colour histogram (Comaniciu et al. 2003)", build_ms),
-    "kalman-dr": Recipe("Kalman filter, drift model, on mean-shift measurements", build_kalman("dr")),
-    "kalman-cv": Recipe("Kalman filter, constant velocity, on mean-shift measurements", build_kalman("cv")),
-    "kalman-ca": Recipe("Kalman filter, constant acceleration, on mean-shift measurements", build_kalman("ca")),
-    "imm": Recipe("Interacting Multiple Model (DR+CV+CA) on mean-shift measurements", build_imm),
+    "ms": Recipe("mean-shift alone on a colour histogram (Comaniciu et al. 2003)", build_ms,
+                 options=MEANSHIFT_OPTIONS),
+    "kalman-dr": Recipe("Kalman filter, drift model, on mean-shift measurements", build_kalman("dr"),
+                        options=MEANSHIFT_OPTIONS),
+    "kalman-cv": Recipe("Kalman filter, constant velocity, on mean-shift measurements", build_kalman("cv"),
+                        options=MEANSHIFT_OPTIONS),
+    "kalman-ca": Recipe("Kalman filter, constant acceleration, on mean-shift measurements", build_kalman("ca"),
+                        options=MEANSHIFT_OPTIONS),
+    "imm": Recipe("Interacting Multiple Model (DR+CV+CA) on mean-shift measurements", build_imm,
+                  options=MEANSHIFT_OPTIONS),
 }

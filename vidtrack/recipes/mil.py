@@ -7,22 +7,12 @@ parameter go to the measurer, those naming a
 
 from __future__ import annotations
 
-import inspect
-
-from ..errors import UsageError
 from ..filters.mil import MILKalmanFilter, MILMeasurer
-from ..tracker import Recipe, Tracker
-
-
-def _params(cls) -> set[str]:
-    return {p for p in inspect.signature(cls.__init__).parameters if p not in ("self", "rng")}
+from ..tracker import Recipe, Tracker, constructor_options
 
 
 def build_mil(seed=None, **options) -> Tracker:
-    measurer_keys, filter_keys = _params(MILMeasurer), _params(MILKalmanFilter)
-    unknown = set(options) - measurer_keys - filter_keys
-    if unknown:
-        raise UsageError(f"filter mil does not take option(s) {', '.join(sorted(unknown))}")
+    measurer_keys, filter_keys = constructor_options(MILMeasurer), constructor_options(MILKalmanFilter)
     measurer = MILMeasurer(rng=seed, **{k: v for k, v in options.items() if k in measurer_keys})
     filt = MILKalmanFilter(**{k: v for k, v in options.items() if k in filter_keys})
     return Tracker(measurer, filt)
@@ -30,5 +20,6 @@ def build_mil(seed=None, **options) -> Tracker:
 
 RECIPES = {
     "mil": Recipe("Multiple Instance Filtering: SLIC superpixels + Pegasos SVM + graph-cut inliers "
-                  "in a Kalman filter (Wnuk & Soatto)", build_mil),
+                  "in a Kalman filter (Wnuk & Soatto)", build_mil,
+                  options=constructor_options(MILMeasurer, MILKalmanFilter)),
 }

@@ -20,6 +20,7 @@ from ..measure.score_map import NCCScoreMapMeasurer
 from ..tracker import Recipe, Tracker
 
 DETECTORS = ("ncc", "face")
+DETECTOR_OPTION = frozenset({"detector"})
 
 
 def make_measurer(detector: str = "ncc", **options):
@@ -35,26 +36,22 @@ def make_measurer(detector: str = "ncc", **options):
 
 
 def _builder(make_filter, default_detector: str = "ncc"):
-    def build(seed=None, detector: str = default_detector, **options) -> Tracker:
-        measurer = make_measurer(detector)
-        unknown = set(options)
-        if unknown:
-            raise UsageError(f"unsupported option(s) for this filter: {', '.join(sorted(unknown))}")
-        return Tracker(measurer, make_filter(np.random.default_rng(seed)))
+    def build(seed=None, detector: str = default_detector) -> Tracker:
+        return Tracker(make_measurer(detector), make_filter(np.random.default_rng(seed)))
     return build
 
 
 RECIPES = {
     "nh": Recipe("SMC NormalHedge on a sliding-detector score map (Chaudhuri, Freund & Hsu 2010)",
-                 _builder(lambda rng: NormalHedgeBoxFilter(rng=rng))),
+                 _builder(lambda rng: NormalHedgeBoxFilter(rng=rng)), options=DETECTOR_OPTION),
     "pf": Recipe("SIR particle filter on a sliding-detector score map (NormalHedge paper's comparator)",
-                 _builder(lambda rng: ParticleBoxFilter(rng=rng))),
+                 _builder(lambda rng: ParticleBoxFilter(rng=rng)), options=DETECTOR_OPTION),
     "bayes": Recipe("exact grid Bayes filter on a sliding-detector score map (NormalHedge paper's comparator)",
-                    _builder(lambda rng: GridBayesBoxFilter(rng=rng))),
+                    _builder(lambda rng: GridBayesBoxFilter(rng=rng)), options=DETECTOR_OPTION),
     "nh-face": Recipe("nh on OpenCV's Haar face-detector score map (the seed's motivating example)",
-                      _builder(lambda rng: NormalHedgeBoxFilter(rng=rng), "face")),
+                      _builder(lambda rng: NormalHedgeBoxFilter(rng=rng), "face"), options=DETECTOR_OPTION),
     "pf-face": Recipe("pf on OpenCV's Haar face-detector score map",
-                      _builder(lambda rng: ParticleBoxFilter(rng=rng), "face")),
+                      _builder(lambda rng: ParticleBoxFilter(rng=rng), "face"), options=DETECTOR_OPTION),
     "bayes-face": Recipe("bayes on OpenCV's Haar face-detector score map",
-                         _builder(lambda rng: GridBayesBoxFilter(rng=rng), "face")),
+                         _builder(lambda rng: GridBayesBoxFilter(rng=rng), "face"), options=DETECTOR_OPTION),
 }

@@ -8,7 +8,7 @@ from __future__ import annotations
 
 from ..filters.box import PassThroughFilter
 from ..measure.opencv_trackers import OpenCVTrackerMeasurer
-from ..tracker import Recipe, Tracker
+from ..tracker import Recipe, Tracker, constructor_options
 
 #: Histogram similarity to the init box below which an OpenCV box counts as lost.
 LOST_BELOW = 0.5
@@ -30,4 +30,6 @@ def _builder(kind: str):
     return build
 
 
-RECIPES = {f"opencv-{kind}": Recipe(text, _builder(kind)) for kind, text in DESCRIPTIONS.items()}
+RECIPES = {f"opencv-{kind}": Recipe(text, _builder(kind),
+                                    options=constructor_options(OpenCVTrackerMeasurer, exclude=("kind",)))
+           for kind, text in DESCRIPTIONS.items()}

@@ -12,14 +12,11 @@ size like the classic trackers'.
 
 from __future__ import annotations
 
-import numpy as np
-
-from ..filters.kalman import motion_model
 from ..filters.svk import SupportVectorKalman, SVKCentreFilter
 from ..measure.meanshift import MeanShiftMeasurer
 from ..tracker import Recipe, Tracker
 from ..types import Box
-from .classic import Q_SCALE
+from .classic import MEANSHIFT_OPTIONS, kalman_core
 
 #: SVR parameters on video.  The paper does not give C for its video
 #: experiments; C = 2^-10 (its linear-motion setting) tracked best on four of
@@ -30,10 +27,13 @@ SVK_DEFAULTS = {"C": 2.0 ** -10, "epsilon": 0.1, "window": 10, "n_folds": 5, "q_
 
 
 def svk_core(box: Box, **params) -> SupportVectorKalman:
-    """A 2-axis SVK core for ``box``: CV bootstrap model, ``R = (0.1 s)^2 I``."""
-    s = box.scale
-    F0, Q0, H = motion_model("cv", q=(Q_SCALE["cv"] * s) ** 2, n_axes=2)
-    return SupportVectorKalman(H, np.eye(2) * (0.1 * s) ** 2, F0, Q0, **{**SVK_DEFAULTS, **params})
+    """A 2-axis SVK core for ``box``, bootstrapped from ``kalman-cv``'s model (:func:`kalman_core`).
+
+    Its own ``R`` is a fallback: on video every update passes the mean-shift
+    measurement's covariance (:class:`~vidtrack.filters.box.CentreFilter`).
+    """
+    cv = kalman_core("cv", box)
+    return SupportVectorKalman(cv.H, cv.R, cv.F, cv.Q, **{**SVK_DEFAULTS, **params})
 
 
 def build_svk(seed=None, **options) -> Tracker:
@@ -44,5 +44,5 @@ def build_svk(seed=None, **options) -> Tracker:
 
 RECIPES = {
     "svk": Recipe("Support Vector Kalman (online SVR-learned F, Q) on mean-shift measurements "
-                  "(Salti & Di Stefano)", build_svk),
+                  "(Salti & Di Stefano)", build_svk, options=frozenset(SVK_DEFAULTS) | MEANSHIFT_OPTIONS),
 }
