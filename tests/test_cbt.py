@@ -233,6 +233,11 @@ def test_learn_cli_writes_a_model_the_recipe_loads(tmp_path, capsys):
     assert main(["learn", "cbt", str(tmp_path / "data" / "Synth" / "img"), "--init-box",
                  f"{b.x},{b.y},{b.w},{b.h}", "--out", str(out2)]) == 0
     assert CBTModel.load(out2).order == 2
+    # --prior-weight reaches the online learner too: a much heavier prior gives a different model
+    out3 = tmp_path / "online_heavy_prior.npz"
+    assert main(["learn", "cbt", str(tmp_path / "data" / "Synth" / "img"), "--init-box",
+                 f"{b.x},{b.y},{b.w},{b.h}", "--out", str(out3), "--prior-weight", "10000"]) == 0
+    assert not np.allclose(CBTModel.load(out3).Dx, CBTModel.load(out2).Dx)
 
 
 @pytest.mark.parametrize("content", [None, b"not a zip", "other-npz"])

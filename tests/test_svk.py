@@ -154,7 +154,7 @@ def test_svk_tables_one_run_matches_the_seed():
     makers = svk_tables.make_filters(args, "linear", 100.0)
     assert set(makers) == set(svk_tables.FILTER_NAMES)
     chosen = {name: makers[name] for name in ("SVK", "Kalman DR Q=1e-2R")}
-    errors = svk_tables.squared_errors("linear", 100.0, chosen, np.random.default_rng(0),
+    errors = svk_tables.squared_errors(100.0, chosen, np.random.default_rng(0),
                                        svk_tables.linear_motion())
     svk_rmse = float(np.sqrt(errors["SVK"].mean()))
     assert abs(svk_rmse - 22.41) / 22.41 < 0.25  # Table 1, whole sequence

@@ -63,7 +63,7 @@ def learn_from_dataset(path: str, *, order: int, names: list[str] | None, max_ga
         gt = np.asarray(seq.ground_truth[start:stop], float)
         annotated = seq.annotated[start:stop]
         centres = gt[:, :2] + gt[:, 2:] / 2.0
-        scale = float(np.sqrt(max(gt[0, 2] * gt[0, 3], 1.0)))
+        scale = seq.ground_truth_box(start).scale
         for piece in _interpolated_tracks(centres, annotated, max_gap):
             for axis in range(2):
                 counts[axis] += displacement_counts(piece[:, axis], basis, scale, order)
@@ -76,7 +76,7 @@ def learn_from_dataset(path: str, *, order: int, names: list[str] | None, max_ga
     return CBTModel(basis, D[0], D[1]), f"{used} sequence(s), {frames} frames of ground truth"
 
 
-def learn_from_video(path: str, init_box: str, *, order: int, max_frames: int | None):
+def learn_from_video(path: str, init_box: str, *, order: int, max_frames: int | None, prior_weight: float):
     from .cli import check_box_in_frame, parse_box
     from .filters.channels import CBTModel
     from .run import run_tracker
@@ -84,7 +84,7 @@ def learn_from_video(path: str, init_box: str, *, order: int, max_frames: int | 
     from .tracker import build_tracker
 
     box = parse_box(init_box)
-    tracker = build_tracker("cbt", seed=0, order=order, relearn_every=1)
+    tracker = build_tracker("cbt", seed=0, order=order, relearn_every=1, prior_weight=prior_weight)
     result = run_tracker(tracker, open_source(path), box, max_frames=max_frames, validate_box=check_box_in_frame)
     filt = tracker.filter
     if not np.any([c.sum() > 0 for c in filt.counts_]):
@@ -133,7 +133,8 @@ def main(argv: Sequence[str]) -> int:
     else:
         if args.init_box is None:
             raise UsageError(f"{args.source} is not a dataset with ground truth; give --init-box to learn from a video")
-        model, what = learn_from_video(str(source), args.init_box, order=args.order, max_frames=args.max_frames)
+        model, what = learn_from_video(str(source), args.init_box, order=args.order, max_frames=args.max_frames,
+                                       prior_weight=args.prior_weight)
     try:
         with open(args.out, "wb") as handle:
             model.save(handle)

@@ -213,7 +213,7 @@ def _read_frames_range(path: Path) -> tuple[int, int]:
         start, end = (int(float(p)) for p in numbers[:2])
     except ValueError:
         raise DatasetError(f"{path}: expected 'start,end' frame numbers") from None
-    if len(numbers) < 2 or end < start:
+    if end < start:
         raise DatasetError(f"{path}: expected 'start,end' frame numbers with start <= end")
     return start, end
 

@@ -39,7 +39,8 @@ import numpy as np
 from ..errors import DatasetError, OutputError, UsageError
 from ..types import Box, Frame, TrackState
 from .datasets import BenchmarkSequence, read_boxes
-from .metrics import PRECISION_THRESHOLDS, SUCCESS_THRESHOLDS, METRIC_NAMES, frame_scores, score, \
+from ..sinks.files import format_box
+from .metrics import PRECISION_THRESHOLDS, SUCCESS_THRESHOLDS, METRIC_NAMES, frame_scores, summarize, \
     precision_curve, success_curve
 
 RECORD_VERSION = 1
@@ -94,10 +95,6 @@ class _Collector:
         pass
 
 
-def _format(box: Box) -> str:
-    return ",".join(f"{v:.3f}".rstrip("0").rstrip(".") or "0" for v in box.as_array())
-
-
 def _ground_truth_pixels(sequence: BenchmarkSequence, start: int, stop: int) -> dict[int, Box]:
     """Annotated rows in ``[start, stop)`` keyed by the source's frame index, 0-based pixels."""
     annotated = sequence.annotated
@@ -141,7 +138,7 @@ def track_job(job: Job) -> JobOutput:
         raise DatasetError(f"sequence {sequence.name}: tracked {result.frames} of {stop - start} frames")
     lines = [NOT_TRACKED] * len(sequence)
     for row, box in enumerate(collector.boxes, start=start):
-        lines[row] = _format(sequence.from_pixels(box))
+        lines[row] = format_box(sequence.from_pixels(box), 3)
     record = {
         "version": RECORD_VERSION,
         "filter": job.filter_name,
@@ -310,8 +307,8 @@ def score_result(sequence: BenchmarkSequence, result_path: Path, record: dict | 
     start, stop = record["tracked"] if record else sequence.eval_range
     mask = np.zeros(len(sequence), dtype=bool)
     mask[start:stop] = True
-    metrics = score(results, sequence.ground_truth, mask)
     ious, errors = frame_scores(results, sequence.ground_truth, mask)
+    metrics = summarize(ious, errors)
     fps = float(record["fps"]) if record and record.get("fps") is not None else float("nan")
     row = {name: metrics[name] for name in METRIC_NAMES}
     row["fps"] = fps

@@ -126,10 +126,13 @@ def frame_scores(results, ground_truth, mask=None) -> tuple[np.ndarray, np.ndarr
 def score(results, ground_truth, mask=None) -> dict[str, float]:
     """``auc``, ``precision20``, ``pascal``, ``center_error`` and ``frames`` (count scored).
 
-    See :func:`frame_scores` for the arguments.  With no frame to score every
-    metric is NaN.
+    See :func:`frame_scores` for the arguments and :func:`summarize` for the metrics.
     """
-    ious, errors = frame_scores(results, ground_truth, mask)
+    return summarize(*frame_scores(results, ground_truth, mask))
+
+
+def summarize(ious: np.ndarray, errors: np.ndarray) -> dict[str, float]:
+    """The metrics of :func:`score` from per-frame ``(ious, centre_errors)``; NaN with no frame."""
     if ious.size == 0:
         return {"auc": float("nan"), "precision20": float("nan"), "pascal": float("nan"),
                 "center_error": float("nan"), "frames": 0}

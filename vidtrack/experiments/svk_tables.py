@@ -39,7 +39,7 @@ from typing import Callable
 import numpy as np
 
 from ..filters.imm import IMMEstimator, uniform_transition_matrix
-from ..filters.kalman import MOTION_ORDERS, KalmanFilter, axis_transition, measured_axis_model
+from ..filters.kalman import MOTION_ORDERS, KalmanFilter, measured_axis_model
 from ..filters.svk import SupportVectorKalman
 
 DESCRIPTION = "Support Vector Kalman vs Kalman/IMM on 1-D motion (Salti & Di Stefano, Tables 1-3)"
@@ -108,8 +108,8 @@ def imm(pool: tuple[str, ...], *, dt: float, q: float, r: float, unmodelled_q: f
 
 def svk(*, dt: float, r: float, C: float, epsilon: float, window: int, n_folds: int) -> SupportVectorKalman:
     """SVK on ``[p, v]`` (a 2x2 learned model), bootstrapping with CV and ``Q0 = 1e-2 R``."""
-    return SupportVectorKalman(np.eye(2), r * np.eye(2), axis_transition("cv", dt), 1e-2 * r * np.eye(2),
-                               C=C, epsilon=epsilon, window=window, n_folds=n_folds)
+    F, Q, H, R = measured_axis_model("cv", dt=dt, q=1e-2 * r, r=r)
+    return SupportVectorKalman(H, R, F, Q, C=C, epsilon=epsilon, window=window, n_folds=n_folds)
 
 
 def make_filters(args: argparse.Namespace, kind: str, r: float) -> dict[str, Callable[[], object]]:
@@ -164,7 +164,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="IMM: process variance of a model's unmodelled derivatives, in units of r (default 1)")
 
 
-def squared_errors(kind: str, r: float, makers: dict, rng: np.random.Generator,
+def squared_errors(r: float, makers: dict, rng: np.random.Generator,
                    truth: tuple[np.ndarray, np.ndarray]) -> dict[str, np.ndarray]:
     """One noise realisation: squared position error per sample, per filter."""
     p, v = truth
@@ -217,7 +217,7 @@ def run(args: argparse.Namespace, progress) -> dict:
     per_run: dict[float, list] = {r: [] for r in NOISE_LEVELS}
     for _ in progress(range(runs), total=runs, desc=args.experiment):
         for r in NOISE_LEVELS:
-            per_run[r].append(summarise(kind, squared_errors(kind, r, make_filters(args, kind, r), rng, truth)))
+            per_run[r].append(summarise(kind, squared_errors(r, make_filters(args, kind, r), rng, truth)))
     for r in NOISE_LEVELS:
         result[f"R{r:g}"] = average_rows(per_run[r])
     return result

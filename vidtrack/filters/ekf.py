@@ -40,8 +40,9 @@ def ekf_update(x: np.ndarray, P: np.ndarray, z: np.ndarray, h: Fn, jacobian: Fn,
 class ExtendedKalmanFilter:
     """Thin state holder over :func:`ekf_predict` / :func:`ekf_update`.
 
-    ``f``, ``f_jacobian`` may take a second argument ``k`` (time index) via
-    :meth:`predict`'s keyword; ``h``, ``h_jacobian`` are time invariant.
+    ``f``, ``f_jacobian`` may take a second argument ``k`` (time index),
+    passed positionally to :meth:`predict` (``ekf.predict(k)``); ``h``,
+    ``h_jacobian`` are time invariant.
     """
 
     def __init__(self, f: Callable, f_jacobian: Callable, h: Fn, h_jacobian: Fn, Q, R) -> None:

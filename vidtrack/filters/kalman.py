@@ -121,8 +121,8 @@ class KalmanFilter:
     """A linear Kalman filter holding ``(x, P)`` and the model ``(F, Q, H, R)``.
 
     A thin state holder over :func:`kf_predict` and :func:`kf_update`
-    (FilterPy style); model matrices are plain attributes a learner may
-    replace between steps (the Support Vector Kalman does).
+    (FilterPy style); model matrices are plain attributes, so a learner may
+    replace them between steps.
     """
 
     def __init__(self, F: np.ndarray, Q: np.ndarray, H: np.ndarray, R: np.ndarray) -> None:

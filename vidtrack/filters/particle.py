@@ -121,7 +121,6 @@ class ParticleFilter:
         ``propagate(particles, rng) -> particles``: samples the transition density.
     log_likelihood
         ``log_likelihood(particles, z) -> (N,)`` log p(z | x).
-    n_particles
     rng
         Seed or Generator.
     resample_below
@@ -129,10 +128,9 @@ class ParticleFilter:
     """
 
     def __init__(self, propagate: Propagate, log_likelihood: Callable[[np.ndarray, object], np.ndarray],
-                 n_particles: int, rng: np.random.Generator | int | None = None, *, resample_below: float = 0.5) -> None:
+                 rng: np.random.Generator | int | None = None, *, resample_below: float = 0.5) -> None:
         self.propagate = propagate
         self.log_likelihood = log_likelihood
-        self.n_particles = n_particles
         self.rng = rng
         self.resample_below = resample_below
 

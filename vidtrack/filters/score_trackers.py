@@ -249,7 +249,7 @@ class ParticleBoxFilter(_CentreBoxFilter):
         def log_likelihood(x, smap):
             return score_log_likelihood(score_at_centres(smap, x, self.outside_score), self.sigma_s)
 
-        self.core_ = ParticleFilter(propagate, log_likelihood, self.n_particles, self.rng)
+        self.core_ = ParticleFilter(propagate, log_likelihood, self.rng)
         self.core_.initialize(np.tile(box.center, (self.n_particles, 1)))
         self.estimate_ = Estimate(box, np.eye(2) * step ** 2, 1.0, TRACKING)
         self.stages_ = {}

@@ -10,7 +10,7 @@ from ..filters.box import PassThroughFilter
 from ..measure.opencv_trackers import OpenCVTrackerMeasurer
 from ..tracker import Recipe, Tracker, constructor_options
 
-#: Histogram similarity to the init box below which an OpenCV box counts as lost.
+#: Histogram similarity (to the init box or the running reference, the better) below which an OpenCV box counts as lost.
 LOST_BELOW = 0.5
 
 DESCRIPTIONS = {
