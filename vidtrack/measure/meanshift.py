@@ -43,21 +43,38 @@ def bin_image(image: np.ndarray, *, gray: bool, bins: int) -> np.ndarray:
     return (q[..., 0] * bins + q[..., 1]) * bins + q[..., 2]
 
 
-def kernel_histogram(bins_img: np.ndarray, box: Box, n_bins: int) -> tuple[np.ndarray, float]:
+def histogram_layout(bins: int, gray: bool) -> tuple[int, int]:
+    """``(bins per channel, total bins)``: ``2 bins`` grey levels for grey images, ``bins**3`` colour cells."""
+    return (bins * 2, bins * 2) if gray else (bins, bins ** 3)
+
+
+def box_pixels(box: Box, width: int, height: int, origin: tuple[int, int] = (0, 0)) -> tuple[int, int, int, int]:
+    """``(x0, y0, x1, y1)``: the pixels ``box`` touches inside the ``width x height`` image whose top-left is ``origin``."""
+    ox, oy = origin
+    x0, y0 = max(int(np.floor(box.x)), ox), max(int(np.floor(box.y)), oy)
+    x1, y1 = min(int(np.ceil(box.x + box.w)), ox + width), min(int(np.ceil(box.y + box.h)), oy + height)
+    return x0, y0, x1, y1
+
+
+def kernel_histogram(bins_img: np.ndarray, box: Box, n_bins: int,
+                     origin: tuple[int, int] = (0, 0)) -> tuple[np.ndarray, float]:
     """Epanechnikov-weighted, normalised histogram of ``box`` (eq. 21) and the kernel mass.
 
-    Pixels outside the image are ignored; returns zeros when none fall inside.
+    ``bins_img`` covers the frame, or only a window of it whose top-left
+    pixel is ``origin`` (frame coordinates; ``box`` stays in frame
+    coordinates).  Pixels outside it are ignored; returns zeros when none
+    fall inside.
     """
     H, W = bins_img.shape
-    x0, y0 = max(int(np.floor(box.x)), 0), max(int(np.floor(box.y)), 0)
-    x1, y1 = min(int(np.ceil(box.x + box.w)), W), min(int(np.ceil(box.y + box.h)), H)
+    x0, y0, x1, y1 = box_pixels(box, W, H, origin)
     if x1 <= x0 or y1 <= y0:
         return np.zeros(n_bins), 0.0
     cx, cy = box.center
     ys, xs = np.mgrid[y0:y1, x0:x1]
     r2 = ((xs + 0.5 - cx) / (box.w / 2)) ** 2 + ((ys + 0.5 - cy) / (box.h / 2)) ** 2
     k = np.clip(1.0 - r2, 0.0, None)  # Epanechnikov profile
-    hist = np.bincount(bins_img[y0:y1, x0:x1].ravel(), weights=k.ravel(), minlength=n_bins)
+    ox, oy = origin
+    hist = np.bincount(bins_img[y0 - oy:y1 - oy, x0 - ox:x1 - ox].ravel(), weights=k.ravel(), minlength=n_bins)
     mass = float(hist.sum())
     return (hist / mass if mass > 0 else hist), mass
 
@@ -145,8 +162,8 @@ class MeanShiftMeasurer:
 
     def initialize(self, frame: Frame, box: Box) -> None:
         self.gray_ = is_gray(frame.image)
-        self.n_bins_ = self.bins * 2 if self.gray_ else self.bins ** 3
-        bins_img = bin_image(frame.image, gray=self.gray_, bins=self.bins * 2 if self.gray_ else self.bins)
+        self.channel_bins_, self.n_bins_ = histogram_layout(self.bins, self.gray_)
+        bins_img = self._bins(frame)
         q, _ = kernel_histogram(bins_img, box, self.n_bins_)
         if self.background_weighting:
             q = self._background_weighted(bins_img, box, q)
@@ -172,7 +189,7 @@ class MeanShiftMeasurer:
         return weighted / weighted.sum() if weighted.sum() > 0 else q
 
     def _bins(self, frame: Frame) -> np.ndarray:
-        return bin_image(frame.image, gray=self.gray_, bins=self.bins * 2 if self.gray_ else self.bins)
+        return bin_image(frame.image, gray=self.gray_, bins=self.channel_bins_)
 
     def measure(self, frame: Frame, prior: Estimate) -> PointMeasurement | None:
         bins_img = self._bins(frame)

@@ -18,7 +18,7 @@ import cv2
 import numpy as np
 
 from ..types import Box, Estimate, Frame, PointMeasurement
-from .meanshift import bhattacharyya, bin_image, is_gray, kernel_histogram
+from .meanshift import bhattacharyya, bin_image, box_pixels, histogram_layout, is_gray, kernel_histogram
 
 
 def _legacy(name: str) -> Callable[[], object]:
@@ -74,12 +74,16 @@ class OpenCVTrackerMeasurer:
         self.tracker_ = OPENCV_TRACKERS[self.kind]()
         self.tracker_.init(frame.image, box.as_int_rect())
         self.gray_ = is_gray(frame.image)
-        self.n_bins_ = self.bins * 2 if self.gray_ else self.bins ** 3
-        self.reference_, _ = kernel_histogram(self._bins(frame), box, self.n_bins_)
+        self.channel_bins_, self.n_bins_ = histogram_layout(self.bins, self.gray_)
+        self.reference_, _ = self._histogram(frame, box)
         self.adaptive_ = self.reference_.copy()
 
-    def _bins(self, frame: Frame) -> np.ndarray:
-        return bin_image(frame.image, gray=self.gray_, bins=self.bins * 2 if self.gray_ else self.bins)
+    def _histogram(self, frame: Frame, box: Box) -> tuple[np.ndarray, float]:
+        """Kernel histogram of ``box``, binning only the pixels it covers (not the whole frame)."""
+        x0, y0, x1, y1 = box_pixels(box, frame.width, frame.height)
+        window = frame.image[max(y0, 0):max(y1, y0), max(x0, 0):max(x1, x0)]
+        bins = bin_image(window, gray=self.gray_, bins=self.channel_bins_)
+        return kernel_histogram(bins, box, self.n_bins_, origin=(x0, y0))
 
     def measure(self, frame: Frame, prior: Estimate) -> PointMeasurement | None:
         ok, rect = self.tracker_.update(frame.image)
@@ -88,7 +92,7 @@ class OpenCVTrackerMeasurer:
         box = Box.from_array(rect)
         if not box.is_valid():
             return None
-        hist, mass = kernel_histogram(self._bins(frame), box, self.n_bins_)
+        hist, mass = self._histogram(frame, box)
         if mass == 0:
             return PointMeasurement(z=box.center, R=np.eye(2), box=box, quality=0.0)
         quality = max(bhattacharyya(hist, self.reference_), bhattacharyya(hist, self.adaptive_))
