@@ -37,7 +37,7 @@ import time
 
 import numpy as np
 
-from ..filters.channels import ChannelBasis, cbt_update, decode, embedded_predict, encode, normalized, shift_matrix
+from ..filters.channels import ChannelBasis, ChannelBayesFilter, decode, encode, history_prior, shift_matrix
 from ..filters.ekf import ExtendedKalmanFilter
 from ..filters.grid_bayes import GridBayesFilter, gaussian_transition
 from ..filters.particle import sir_step, systematic_resample
@@ -112,19 +112,14 @@ def train_cbt(train: list[tuple[np.ndarray, np.ndarray]], channels: int = 12, or
 
 
 def run_cbt(z: np.ndarray, G: np.ndarray, H: np.ndarray, bx: ChannelBasis, bz: ChannelBasis) -> np.ndarray:
-    """Track one sequence; returns the decoded ``x_1..x_T``."""
-    order = G.ndim - 1
-    c0 = encode(X0, bx)
-    W = c0
-    for _ in range(order - 1):
-        W = np.multiply.outer(W, c0)  # the known x_0 over the padded history
+    """Track one sequence with :class:`~vidtrack.filters.channels.ChannelBayesFilter`; the decoded ``x_1..x_T``."""
+    cbt = ChannelBayesFilter(G, H)
+    cbt.initialize(history_prior(encode(X0, bx), cbt.order))  # the known x_0 over the padded history
     out = np.empty(len(z) - 1)
     for k in range(1, len(z)):
-        W = embedded_predict(W, G)  # w_{k|k-1} = F w_{k-1|k-1} (stationary part)
-        W = normalized(np.tensordot(shift_matrix(bx.n, drive(k) / bx.spacing), W, axes=([1], [0])))
-        h = H.T @ encode(z[k], bz)  # h(z_k)
-        W, _ = cbt_update(W, h.reshape((-1,) + (1,) * (order - 1)) * np.ones_like(W))  # eq. 10
-        t, _ = decode(W.reshape(bx.n, -1).sum(axis=1))
+        cbt.predict(drive(k) / bx.spacing)  # w_{k|k-1} = F w_{k-1|k-1} (stationary part), translated by the drive
+        cbt.update(cbt.likelihood(encode(z[k], bz)))  # eq. 10 with h(z_k) = H' c(z_k)
+        t, _ = decode(cbt.marginal())  # eq. 8 on the current position's marginal
         out[k - 1] = bx.from_channel(t)
     return out
 
@@ -141,10 +136,7 @@ def refine_cbt(train, G, H, bx: ChannelBasis, bz: ChannelBasis, iterations: int)
     for _, z in train:
         z_channels.append(np.vstack([np.zeros((order, bz.n)), encode(z[1:], bz)]))
         shifts.append([None] * order + [shift_matrix(bx.n, drive(k) / bx.spacing) for k in range(1, len(z))])
-    c0 = encode(X0, bx)
-    W0 = c0
-    for _ in range(order - 1):
-        W0 = np.multiply.outer(W0, c0)
+    W0 = history_prior(encode(X0, bx), order)  # the known x_0 over the padded history
     return baum_welch(z_channels, G, H, iterations=iterations, W0=[W0] * len(train), shifts=shifts, tol=0.0)
 
 

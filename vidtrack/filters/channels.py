@@ -280,6 +280,11 @@ def normalized(w: np.ndarray) -> np.ndarray:
     return w / total
 
 
+def current_marginal(W: np.ndarray) -> np.ndarray:
+    """Channel vector of the current position: ``W[x_k, x_{k-1}, ...]`` summed over every history axis."""
+    return W.reshape(W.shape[0], -1).sum(axis=1)
+
+
 def cbt_predict(w: np.ndarray, F: np.ndarray) -> np.ndarray:
     """Prediction ``w_{k|k-1} = F w_{k-1|k-1}`` (eq. 10), renormalised."""
     return normalized(F @ w)
@@ -411,7 +416,7 @@ class ChannelBayesFilter:
 
     def marginal(self) -> np.ndarray:
         """Channel vector of the current position."""
-        return self.W_.reshape(self.W_.shape[0], -1).sum(axis=1)
+        return current_marginal(self.W_)
 
 
 # --------------------------------------------------------------------- 2-D from per-axis models
@@ -446,7 +451,7 @@ def mean_field_update(Ws: Sequence[np.ndarray], h: np.ndarray, product: str = "p
     (which keeps the cross-axis association of the detections, for decoding)
     and the evidence.
     """
-    marg = [W.reshape(W.shape[0], -1).sum(axis=1) for W in Ws]
+    marg = [current_marginal(W) for W in Ws]
     joint = np.multiply.outer(marg[0], marg[1])
     post, evidence = cbt_update(joint, h, product)
     new = [post.sum(axis=1), post.sum(axis=0)]
@@ -498,7 +503,7 @@ class PlanarCBT:
 
     def predict(self) -> None:
         self.W_ = [embedded_predict(W, G) for W, G in zip(self.W_, self.G)]
-        m = [W.reshape(W.shape[0], -1).sum(axis=1) for W in self.W_]
+        m = [current_marginal(W) for W in self.W_]
         self.post_ = np.multiply.outer(m[0], m[1])
 
     def update(self, points, weights=None) -> float:
@@ -526,23 +531,41 @@ def encode_unclipped(x, basis: ChannelBasis) -> np.ndarray:
     return cos2_kernel(np.asarray(t)[..., None] - np.arange(basis.n))
 
 
+def embedded_counts(seqs: Sequence[np.ndarray], order: int, targets: Sequence[np.ndarray] | None = None) -> np.ndarray:
+    """Numerator of eq. 11 in the order-``order`` embedding: ``sum_k t_k o c_{k-1} o ... o c_{k-order}``.
+
+    ``seqs`` are per-sequence ``(T, C)`` channel vectors ``c_k``; ``targets``
+    (default ``seqs``) supplies the new-position vectors ``t_k``; give the
+    vectors of a detrended variable (Carlin's ``x_k - 8 cos(1.2 k)``) to learn
+    only the stationary part of the model.  Sequences of at most ``order``
+    frames add nothing.  Shape ``(C_t,) + (C,) * order``.
+    """
+    targets = seqs if targets is None else targets
+    C = np.asarray(seqs[0]).shape[1]
+    counts = np.zeros((np.asarray(targets[0]).shape[1],) + (C,) * order)
+    letters = "abcdefghij"[: order + 1]
+    spec = ",".join(f"m{c}" for c in letters) + "->" + letters
+    for seq, tgt in zip(seqs, targets):
+        seq = np.asarray(seq, float)
+        tgt = np.asarray(tgt, float)
+        T = len(seq)
+        if T <= order:
+            continue
+        parts = [tgt[order:T]] + [seq[order - j: T - j] for j in range(1, order + 1)]
+        counts += np.einsum(spec, *parts)
+    return counts
+
+
 def displacement_counts(track: np.ndarray, basis: ChannelBasis, scale: float, order: int) -> np.ndarray:
     """Joint channel counts of ``order`` consecutive displacements of a 1-D track.
 
     ``d_k = (x_k - x_{k-1}) / scale``; returns ``sum_k c(d_k) o c(d_{k-1}) o ...``
     of shape ``(C,) * order`` (the numerator of the covariance estimate eq. 11
-    for a translation-invariant model).
+    for a translation-invariant model): :func:`embedded_counts` of the
+    displacements' channel vectors with ``order - 1`` history positions.
     """
     d = np.diff(np.asarray(track, dtype=float)) / scale
-    counts = np.zeros((basis.n,) * order)
-    if len(d) < order:
-        return counts
-    enc = encode(d, basis)
-    letters = "abcdefgh"[:order]
-    T = len(d) - order + 1
-    parts = [enc[order - 1 - j: order - 1 - j + T] for j in range(order)]  # d_k, d_{k-1}, ...
-    counts += np.einsum(",".join(f"m{c}" for c in letters) + "->" + letters, *parts)
-    return counts
+    return embedded_counts([encode(d, basis)], order - 1)
 
 
 def conditional_from_counts(counts: np.ndarray, prior: np.ndarray | None = None, prior_weight: float = 0.0) -> np.ndarray:
@@ -711,7 +734,6 @@ class CBTFilter:
         self.W_ = [history_prior(encode(centre[axis], b), self.order) for axis, b in enumerate(self.bases_)]
         self.history_ = [centre.copy()]
         self.since_learn_ = 0
-        self.modes_: list[tuple[np.ndarray, float]] = []
         self.prior_box_ = box
         self.estimate_ = Estimate(box, None, 1.0, TRACKING, {})
 
@@ -722,49 +744,41 @@ class CBTFilter:
     def _box_at(self, centre: np.ndarray) -> Box:
         return Box.from_center(float(centre[0]), float(centre[1]), *self.size_)
 
-    def _marginals(self) -> list[np.ndarray]:
-        return [W.reshape(W.shape[0], -1).sum(axis=1) for W in self.W_]
+    def _prior_joint(self) -> np.ndarray:
+        """Mean-field joint ``(C_x, C_y)`` of the current centre: the outer product of the axis marginals."""
+        m = [current_marginal(W) for W in self.W_]
+        return np.multiply.outer(m[0], m[1])
 
     def _to_frame(self, t: np.ndarray) -> np.ndarray:
         return np.array([self.bases_[0].from_channel(t[0]), self.bases_[1].from_channel(t[1])])
 
     def predict(self) -> Estimate:
         self.W_ = [embedded_predict(W, G) for W, G in zip(self.W_, self.G_)]  # w_{k|k-1} = F w_{k-1|k-1}
-        m = self._marginals()
-        t, mass = decode_nd(np.multiply.outer(m[0], m[1]))
+        t, mass = decode_nd(self._prior_joint())
         self.prior_box_ = self._box_at(np.clip(self._to_frame(t), 0.0, np.asarray(self.frame_size_, float)))
         self.estimate_ = Estimate(self.prior_box_, None, self.estimate_.confidence,
                                   self.estimate_.status, {"mode_mass": mass})
         return self.estimate_
 
     def likelihood(self, detections: Detections) -> np.ndarray:
-        """``h(z)`` over the current-centre channel grid ``(C_x, C_y)``."""
-        h = np.full((self.bases_[0].n, self.bases_[1].n), self.clutter)
+        """``h(z)`` over the current-centre channel grid ``(C_x, C_y)`` (:func:`product_likelihood`)."""
+        s = None
         if len(detections.points):
             scores = np.asarray(detections.scores, float)
             top = float(scores.max()) if self.relative_scores else 1.0
             s = np.exp((scores - top) / self.score_temperature)
-            ex = encode_unclipped(detections.points[:, 0], self.bases_[0])
-            ey = encode_unclipped(detections.points[:, 1], self.bases_[1])
-            h = h + np.einsum("m,mi,mj->ij", s, ex, ey)
-        return h
+        return product_likelihood(detections.points, self.bases_, weights=s, clutter=self.clutter)
 
     def update(self, measurement: Measurement | None) -> Estimate:
         scalars: dict[str, float] = {}
-        m = self._marginals()
-        joint = np.multiply.outer(m[0], m[1])
         has_dets = isinstance(measurement, Detections) and len(measurement.points) > 0
-        if has_dets:
-            post, evidence = cbt_update(joint, self.likelihood(measurement), self.product)  # eq. 10
-            new_m = [post.sum(axis=1), post.sum(axis=0)]
-            for axis in range(2):  # re-factorise: history tensors scaled by new / old current marginal
-                ratio = new_m[axis] / np.maximum(m[axis], _TINY)
-                self.W_[axis] = normalized(self.W_[axis] * ratio.reshape((-1,) + (1,) * (self.order - 1)))
+        if has_dets:  # eq. 10 on the mean-field joint, re-factorised into the axes' history tensors
+            self.W_, post, evidence = mean_field_update(self.W_, self.likelihood(measurement), self.product)
             scalars["evidence"] = float(evidence)
         else:
-            post = joint
+            post = self._prior_joint()
         scalars["detections"] = float(len(measurement.points)) if isinstance(measurement, Detections) else 0.0
-        self.modes_ = [(self._to_frame(t), w) for t, w in decode_nd_modes(post, self.mode_threshold)]
+        n_modes = len(decode_nd_modes(post, self.mode_threshold))
         t, mass = decode_nd(post)
         centre = np.clip(self._to_frame(t), 0.0, np.asarray(self.frame_size_, float))
         best_near = 0.0
@@ -775,7 +789,7 @@ class CBTFilter:
                 best_near = float(np.max(np.asarray(measurement.scores, float)[near]))
         confidence = float(np.clip(min(1.0, mass / self.mass_full) * best_near, 0.0, 1.0))
         status = TRACKING if confidence >= self.lost_below else LOST
-        scalars.update(mode_mass=mass, best_near=best_near, modes=float(len(self.modes_)))
+        scalars.update(mode_mass=mass, best_near=best_near, modes=float(n_modes))
         if status == TRACKING:
             self.history_.append(centre.copy())
             self.history_ = self.history_[-(self.order + 1):]
@@ -784,7 +798,7 @@ class CBTFilter:
         else:
             self.history_ = [centre.copy()]  # a gap breaks the displacement chain
             if self.coast_when_lost:  # forget the velocity: the history repeats the current position
-                self.W_ = [diagonal_history(W.reshape(W.shape[0], -1).sum(axis=1), self.order) for W in self.W_]
+                self.W_ = [diagonal_history(current_marginal(W), self.order) for W in self.W_]
         box = self._box_at(centre) if status == TRACKING else self.prior_box_  # lost: the prediction
         self.estimate_ = Estimate(box, None, confidence, status, scalars)
         return self.estimate_
@@ -801,9 +815,3 @@ class CBTFilter:
             self.since_learn_ = 0
             self.D_ = [conditional_from_counts(c, p, self.prior_weight) for c, p in zip(self.counts_, self.prior_D_)]
             self.G_ = [position_conditional(D, self.d_basis_, b, self.scale_) for D, b in zip(self.D_, self.bases_)]
-
-    def point_stage(self) -> np.ndarray:
-        """The decoded modes as an ``(M, 3)`` ``[x, y, mass]`` array."""
-        if not self.modes_:
-            return np.zeros((0, 3))
-        return np.array([[c[0], c[1], w] for c, w in self.modes_])

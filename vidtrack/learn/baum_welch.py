@@ -31,7 +31,7 @@ from typing import Sequence
 
 import numpy as np
 
-from ..filters.channels import channel_product, embedded_predict, encode, normalized
+from ..filters.channels import channel_product, current_marginal, embedded_counts, embedded_predict, encode, normalized
 
 _TINY = 1e-300
 _LETTERS = "abcdefghij"
@@ -52,32 +52,12 @@ def _history(seq: np.ndarray, order: int, k: int) -> np.ndarray:
     return W
 
 
-def embedded_counts(seqs: Sequence[np.ndarray], order: int, targets: Sequence[np.ndarray] | None = None) -> np.ndarray:
-    """Numerator of eq. 11 in the order-``order`` embedding: ``sum_k t_k o c_{k-1} o ... o c_{k-order}``.
-
-    ``targets`` (default ``seqs``) supplies the new-position vectors ``t_k``;
-    give the vectors of a detrended variable (Carlin's ``x_k - 8 cos(1.2 k)``)
-    to learn only the stationary part of the model.
-    """
-    targets = seqs if targets is None else targets
-    C = np.asarray(seqs[0]).shape[1]
-    counts = np.zeros((np.asarray(targets[0]).shape[1],) + (C,) * order)
-    letters = _LETTERS[: order + 1]
-    spec = ",".join(f"m{c}" for c in letters) + "->" + letters
-    for seq, tgt in zip(seqs, targets):
-        seq = np.asarray(seq, float)
-        tgt = np.asarray(tgt, float)
-        T = len(seq)
-        if T <= order:
-            continue
-        parts = [tgt[order:T]] + [seq[order - j: T - j] for j in range(1, order + 1)]
-        counts += np.einsum(spec, *parts)
-    return counts
-
-
 def embedded_covariance(seqs: Sequence[np.ndarray], order: int, targets: Sequence[np.ndarray] | None = None,
                         *, floor: float = 1e-6) -> np.ndarray:
     """Eq. 11 in the embedded model: ``G = counts / marginal of the previous n positions``.
+
+    ``counts`` is :func:`~vidtrack.filters.channels.embedded_counts` of ``seqs``
+    (and ``targets``).
 
     Histories never seen get a uniform column (``floor`` keeps every entry
     positive so a prediction never vanishes).
@@ -215,10 +195,8 @@ def baum_welch(z_channels: Sequence[np.ndarray], G: np.ndarray, H: np.ndarray, *
             if W0 is not None:
                 w0 = W0[s]
             else:
-                state = normalized_rows(h)  # empirical prior from the first frames' likelihoods
-                w0 = state[order - 1]
-                for j in range(1, order):
-                    w0 = np.multiply.outer(w0, state[order - 1 - j])
+                # empirical prior from the first frames' likelihoods: c_{n-1} o c_{n-2} o ... o c_0
+                w0 = _history(normalized_rows(h), order, order - 1)
             alphas, ll = forward(G, h, w0, product, sh)
             betas = backward(G, h, product, sh)
             loglik += ll
@@ -235,7 +213,7 @@ def baum_welch(z_channels: Sequence[np.ndarray], G: np.ndarray, H: np.ndarray, *
                 for i, (a, b) in enumerate(zip(alphas, betas)):
                     k = i + order - 1
                     gamma = normalized(channel_product(a, b, product))  # alpha . beta
-                    g = gamma.reshape(gamma.shape[0], -1).sum(axis=1)  # marginal of the current position
+                    g = current_marginal(gamma)  # marginal of the current position
                     gz_num += np.outer(z[k], g)  # eq. 19: h(z) <- sum_k z_k (alpha_k . beta_k)
         xi_sum += smoothing
         G_new = xi_sum / xi_sum.sum(axis=0, keepdims=True)
