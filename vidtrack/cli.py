@@ -33,6 +33,32 @@ class OneLineParser(argparse.ArgumentParser):
     def error(self, message: str) -> None:  # type: ignore[override]
         self.exit(2, f"{self.prog}: error: {message} (see {self.prog} --help)\n")
 
+    def parse_known_args(self, args=None, namespace=None):  # type: ignore[override]
+        return super().parse_known_args(join_negative_values(sys.argv[1:] if args is None else args), namespace)
+
+
+#: Options whose value may start with a minus sign (a box partly left of or above the frame).
+NEGATIVE_VALUE_OPTIONS = ("--init-box",)
+_NEGATIVE_STARTS = {f"-{c}" for c in "0123456789."}
+
+
+def join_negative_values(argv: Sequence[str]) -> list[str]:
+    """``["--init-box", "-5,20,31,45"]`` -> ``["--init-box=-5,20,31,45"]``.
+
+    argparse takes a value starting with ``-`` for an option, so the plain
+    form would fail with "expected one argument" while ``--init-box=-5,...``
+    works; this makes both work.
+    """
+    argv, out, i = list(argv), [], 0
+    while i < len(argv):
+        if argv[i] in NEGATIVE_VALUE_OPTIONS and i + 1 < len(argv) and argv[i + 1][:2] in _NEGATIVE_STARTS:
+            out.append(f"{argv[i]}={argv[i + 1]}")
+            i += 2
+        else:
+            out.append(argv[i])
+            i += 1
+    return out
+
 
 def parse_box(text: str):
     """``"x,y,w,h"`` -> :class:`~vidtrack.types.Box`; positive size required."""

@@ -46,7 +46,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..errors import DatasetError
+from ..errors import DatasetError, SourceError
 from ..sources import IMAGE_SUFFIXES
 from ..types import Box
 
@@ -140,7 +140,8 @@ def annotated_rows(boxes: np.ndarray) -> np.ndarray:
 def parse_boxes(text: str, *, source: str = "boxes") -> np.ndarray:
     """Rows of ``x,y,w,h`` (separated by commas, tabs or spaces) -> ``(N, 4)`` floats.
 
-    Blank lines are ignored; ``NaN`` values are kept (not annotated).
+    Blank lines are ignored; ``NaN`` values are kept (not annotated); a
+    leading UTF-8 byte-order mark and CRLF line ends are accepted.
 
     Raises
     ------
@@ -148,7 +149,7 @@ def parse_boxes(text: str, *, source: str = "boxes") -> np.ndarray:
         On a row that is not four numbers.
     """
     rows = []
-    for number, line in enumerate(text.splitlines(), start=1):
+    for number, line in enumerate(text.removeprefix("\ufeff").splitlines(), start=1):
         line = line.strip()
         if not line:
             continue
@@ -166,7 +167,7 @@ def parse_boxes(text: str, *, source: str = "boxes") -> np.ndarray:
 def read_boxes(path: Path) -> np.ndarray:
     """Read a ground-truth or result file (see :func:`parse_boxes`)."""
     try:
-        text = Path(path).read_text(encoding="utf-8", errors="replace")
+        text = Path(path).read_text(encoding="utf-8-sig", errors="replace")  # -sig: a Windows BOM is read
     except OSError as exc:
         raise DatasetError(f"cannot read {path}: {exc.strerror or exc}") from None
     return parse_boxes(text, source=str(path))
@@ -207,7 +208,7 @@ def _mil_file(folder: Path, suffix: str) -> Path | None:
 
 
 def _read_frames_range(path: Path) -> tuple[int, int]:
-    text = path.read_text(encoding="utf-8", errors="replace")
+    text = path.read_text(encoding="utf-8-sig", errors="replace")
     numbers = [p for p in _SEPARATORS.split(text.strip()) if p]
     try:
         start, end = (int(float(p)) for p in numbers[:2])
@@ -275,8 +276,29 @@ def load_sequence(folder: str | Path) -> BenchmarkSequence:
     sequence = BenchmarkSequence(name=name, path=folder, files=tuple(files), ground_truth=ground_truth,
                                  origin=0 if is_mil else 1, layout="mil" if images_dir.name == MIL_IMAGES else "otb",
                                  run_range=run_range)
-    sequence.init_index  # raises DatasetError when nothing is annotated
+    check_init_box(sequence, gt_path.name)  # raises DatasetError when nothing is annotated
     return sequence
+
+
+def check_init_box(sequence: BenchmarkSequence, gt_name: str) -> None:
+    """Reject a sequence whose init ground-truth box is not (mostly) inside its first tracked frame.
+
+    Raises
+    ------
+    DatasetError
+        Naming the ground-truth row, so a bad row is not mistaken for a tracker crash.
+    """
+    from ..sources import image_size
+
+    row = sequence.init_index
+    box = sequence.to_pixels(sequence.ground_truth_box(row))
+    try:
+        width, height = image_size(sequence.files[row])
+    except SourceError as exc:
+        raise DatasetError(f"sequence {sequence.name}: {exc}") from None
+    if box.clipped(width, height).area < 0.5 * box.area:
+        raise DatasetError(f"sequence {sequence.name}: {gt_name} row {row + 1}: the init box "
+                           f"{sequence.ground_truth_box(row)} lies outside the {width}x{height} frame")
 
 
 def find_sequences(dataset: str | Path) -> list[Path]:

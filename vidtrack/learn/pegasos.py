@@ -145,8 +145,14 @@ class PegasosSVM:
         return self.partial_fit(X, y)
 
     def decision_function(self, X: np.ndarray) -> np.ndarray:
-        """Signed scores ``<w, [x, bias_scale]>``, ``(K,)``."""
+        """Signed scores ``<w, [x, bias_scale]>``, ``(K,)``.
+
+        Before any training ``w = 0`` (Pegasos' starting point), so every score is 0:
+        a model that has not seen both classes yet has no opinion, and says so.
+        """
         X = np.asarray(X, dtype=float)
+        if not hasattr(self, "coef_"):
+            return np.zeros(len(X))
         w = self.avg_coef_ if self.average and hasattr(self, "avg_coef_") else self.coef_
         return X @ w[:-1] + self.bias_scale * w[-1]
 

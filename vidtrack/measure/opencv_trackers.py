@@ -17,8 +17,15 @@ from typing import Callable
 import cv2
 import numpy as np
 
+from ..errors import UsageError
 from ..types import Box, Estimate, Frame, PointMeasurement
 from .meanshift import bhattacharyya, bin_image, box_pixels, histogram_layout, is_gray, kernel_histogram
+
+
+def _cv_message(exc: cv2.error) -> str:
+    """The last line of an OpenCV error (its assertion), without file and line."""
+    text = str(exc).strip().splitlines()[-1] if str(exc).strip() else "OpenCV error"
+    return text.split(" error: ", 1)[-1]
 
 
 def _legacy(name: str) -> Callable[[], object]:
@@ -34,6 +41,45 @@ OPENCV_TRACKERS: dict[str, Callable[[], object]] = {
     "medianflow": _legacy("TrackerMedianFlow_create"),
     "mosse": _legacy("TrackerMOSSE_create"),
 }
+
+
+#: Smallest box side (pixels, after clipping to the frame) OpenCV's trackers start on: below it
+#: CSRT and MOSSE fail an assertion, TLD crashes the process and MIL does not finish a frame.
+MIN_SIDE = 8
+
+#: Largest fraction of the frame's width or height the box may cover for trackers that sample
+#: background around it (MIL finds no negative samples otherwise and fails an assertion; TLD
+#: crashes the process on a box spanning the frame's width or height, measured on 128x96 frames).
+MAX_COVER = {"mil": 0.9, "tld": 0.9}
+
+#: Largest side ratio (long / short) per tracker: TLD crashes the process on a 100x10 box.
+MAX_ASPECT = {"tld": 5.0}
+
+
+def start_rect(kind: str, box: Box, width: int, height: int) -> tuple[int, int, int, int]:
+    """The integer rect OpenCV's ``kind`` tracker is started on: ``box`` clipped to the frame.
+
+    Raises
+    ------
+    UsageError
+        When the part of ``box`` inside the ``width`` x ``height`` frame is
+        smaller than :data:`MIN_SIDE` or (MIL) leaves no background around it:
+        one line instead of an OpenCV assertion, a crash or a hang.
+    """
+    x0, y0 = max(int(round(box.x)), 0), max(int(round(box.y)), 0)
+    x1, y1 = min(int(round(box.x + box.w)), width), min(int(round(box.y + box.h)), height)
+    w, h = x1 - x0, y1 - y0
+    if w < MIN_SIDE or h < MIN_SIDE:
+        raise UsageError(f"opencv-{kind} needs a box of at least {MIN_SIDE}x{MIN_SIDE} pixels inside "
+                         f"the frame, got {max(w, 0)}x{max(h, 0)}")
+    cover = MAX_COVER.get(kind)
+    if cover is not None and (w > cover * width or h > cover * height):
+        raise UsageError(f"opencv-{kind} needs background around the box: {w}x{h} covers more than "
+                         f"{cover:.0%} of the {width}x{height} frame's width or height")
+    aspect = MAX_ASPECT.get(kind)
+    if aspect is not None and max(w, h) > aspect * min(w, h):
+        raise UsageError(f"opencv-{kind} needs a box at most {aspect:g} times longer than wide, got {w}x{h}")
+    return x0, y0, w, h
 
 
 #: OpenCV trackers with random state inside OpenCV that ``--seed`` cannot reset: reproducible per
@@ -71,8 +117,13 @@ class OpenCVTrackerMeasurer:
 
     def initialize(self, frame: Frame, box: Box) -> None:
         cv2.setRNGSeed(0 if self.seed is None else int(self.seed))
+        rect = start_rect(self.kind, box, frame.width, frame.height)
         self.tracker_ = OPENCV_TRACKERS[self.kind]()
-        self.tracker_.init(frame.image, box.as_int_rect())
+        try:
+            self.tracker_.init(frame.image, rect)
+        except cv2.error as exc:
+            raise UsageError(f"opencv-{self.kind} cannot start on the box {box}: "
+                             f"{_cv_message(exc)}") from None
         self.gray_ = is_gray(frame.image)
         self.channel_bins_, self.n_bins_ = histogram_layout(self.bins, self.gray_)
         self.reference_, _ = self._histogram(frame, box)
@@ -86,7 +137,10 @@ class OpenCVTrackerMeasurer:
         return kernel_histogram(bins, box, self.n_bins_, origin=(x0, y0))
 
     def measure(self, frame: Frame, prior: Estimate) -> PointMeasurement | None:
-        ok, rect = self.tracker_.update(frame.image)
+        try:
+            ok, rect = self.tracker_.update(frame.image)
+        except cv2.error:  # OpenCV's assertion on a degenerate box: a missed measurement, not a crash
+            return None
         if not ok:
             return None
         box = Box.from_array(rect)
