@@ -118,6 +118,9 @@ def build_track_parser() -> argparse.ArgumentParser:
     parser.add_argument("--log", metavar="FILE.csv", help="write frame,x,y,w,h,confidence,status per frame")
     parser.add_argument("--rerun", metavar="FILE.rrd", help="write a Rerun recording of every stage")
     parser.add_argument("--rerun-spawn", action="store_true", help="also show the recording in a Rerun viewer")
+    parser.add_argument("--flush-every", type=int, default=30, metavar="N",
+                        help="frames per fragment of the annotated video and per batch of the Rerun "
+                             "recording (default 30): after a hard stop at most N frames are missing")
     parser.add_argument("--model", metavar="FILE", help="a learned model file for filters that take one (cbt)")
     parser.add_argument("--detector", metavar="NAME", help="detector for score-map filters (e.g. face)")
     parser.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
@@ -147,6 +150,8 @@ def run_track(argv: Sequence[str]) -> int:
     init_box = parse_box(args.init_box)
     if args.max_frames is not None and args.max_frames < 1:
         raise UsageError("--max-frames must be at least 1")
+    if args.flush_every < 1:
+        raise UsageError("--flush-every must be at least 1")
     name = args.filter or default_filter()
     tracker = build_tracker(name, seed=args.seed, **tracker_options(args))
     source = open_source(args.video)
@@ -158,11 +163,13 @@ def run_track(argv: Sequence[str]) -> int:
         if args.log:
             sinks.append(CsvLogSink(args.log))
         if args.output:
-            sinks.append(AnnotatedVideoSink(args.output, filter_name=name, fps=source.fps))
+            sinks.append(AnnotatedVideoSink(args.output, filter_name=name, fps=source.fps,
+                                            batch=args.flush_every))
         if args.rerun or args.rerun_spawn:
             from .sinks.rerun import RerunSink
 
-            sinks.append(RerunSink(args.rerun, filter_name=name, spawn=args.rerun_spawn))
+            sinks.append(RerunSink(args.rerun, filter_name=name, spawn=args.rerun_spawn,
+                                   batch_frames=args.flush_every))
     except VidtrackError:
         for sink in sinks:
             sink.close()

@@ -324,8 +324,11 @@ class RerunSink:
     point_radius
         Point radius range in pixels, from zero weight to the largest weight.
     batch_frames
-        Buffered rows are sent every this many frames (and on close); a
-        spawned viewer lags by at most this many frames.
+        Buffered rows are sent every this many frames (and on close), and the
+        file is flushed: a spawned viewer lags by at most this many frames, and
+        after a hard stop (``kill -9``) the file holds every frame up to the
+        last complete batch (readable by :func:`read_recording`, without the
+        footer that ``close`` writes).
     application_id
         Rerun application id (recordings of one application share blueprints).
 
@@ -537,6 +540,8 @@ class RerunSink:
         self._buffered += 1
         if self._buffered >= self.batch_frames:
             self._send_buffered()
+            if self.path is not None:
+                self._rec.flush()  # the batch is in the file: a hard stop (kill -9) keeps it
 
     def _row(self, path: str, kind: str, index: int, payload) -> None:
         """Queue one row of ``path`` (``payload`` None: an empty row), sent with the next batch."""

@@ -46,13 +46,19 @@ def annotate(image: np.ndarray, state: TrackState, filter_name: str) -> np.ndarr
 
 
 class AnnotatedVideoSink:
-    """Writes the annotated frames to a video (mp4v for ``.mp4``, MJPG for ``.avi``)."""
+    """Writes the annotated frames to a video: MJPG for ``.avi`` (OpenCV), else H.264 (PyAV).
 
-    def __init__(self, path: str | Path, *, filter_name: str, fps: float = 30.0) -> None:
+    ``.mp4``/``.mov``/``.m4v`` are fragmented MP4 (:mod:`vidtrack.sinks.h264`):
+    after a hard stop (``kill -9``, power cut) the file plays up to its last
+    complete fragment, so at most ``batch`` of the last frames are missing.
+    """
+
+    def __init__(self, path: str | Path, *, filter_name: str, fps: float = 30.0, batch: int = 30) -> None:
         self.path = Path(path)
         self.filter_name = filter_name
         self.fps = fps
-        self._writer: cv2.VideoWriter | None = None
+        self.batch = batch
+        self._writer = None
         try:
             self.path.parent.mkdir(parents=True, exist_ok=True)
             with open(self.path, "wb"):
@@ -61,7 +67,12 @@ class AnnotatedVideoSink:
             raise OutputError(f"cannot write {self.path}: {exc.strerror or exc}") from None
 
     def _open(self, width: int, height: int) -> None:
-        fourcc = cv2.VideoWriter_fourcc(*("MJPG" if self.path.suffix.lower() == ".avi" else "mp4v"))
+        if self.path.suffix.lower() != ".avi":
+            from .h264 import H264Writer
+
+            self._writer = H264Writer(self.path, fps=self.fps, batch=self.batch)
+            return
+        fourcc = cv2.VideoWriter_fourcc(*"MJPG")
         self._writer = cv2.VideoWriter(str(self.path), fourcc, self.fps, (width, height))
         if not self._writer.isOpened():
             raise OutputError(f"cannot write video {self.path}: no encoder for {self.path.suffix or 'this name'}")
@@ -72,5 +83,6 @@ class AnnotatedVideoSink:
         self._writer.write(annotate(frame.image, state, self.filter_name))
 
     def close(self) -> None:
-        if self._writer is not None:
-            self._writer.release()
+        writer, self._writer = self._writer, None
+        if writer is not None:
+            writer.release() if isinstance(writer, cv2.VideoWriter) else writer.close()
