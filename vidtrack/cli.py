@@ -10,6 +10,7 @@ from __future__ import annotations
 import argparse
 import importlib
 import json
+import math
 import sys
 from pathlib import Path
 from typing import Sequence
@@ -71,6 +72,8 @@ def parse_box(text: str):
         raise UsageError(f"--init-box must be four numbers x,y,w,h, got {text!r}") from None
     if len(values) != 4:
         raise UsageError(f"--init-box must be four numbers x,y,w,h, got {text!r}")
+    if not all(math.isfinite(v) for v in values):
+        raise UsageError(f"--init-box must be four finite numbers x,y,w,h, got {text!r}")
     box = Box.from_array(values)
     if not box.is_valid():
         raise UsageError(f"--init-box must have a positive width and height, got {text!r}")
@@ -141,6 +144,7 @@ def tracker_options(args: argparse.Namespace) -> dict:
 
 def run_track(argv: Sequence[str]) -> int:
     from .run import run_tracker
+    from .sinks.base import close_and_remove
     from .sinks.files import BoxesSink, CsvLogSink
     from .sinks.video import AnnotatedVideoSink
     from .sources import open_source
@@ -171,8 +175,7 @@ def run_track(argv: Sequence[str]) -> int:
             sinks.append(RerunSink(args.rerun, filter_name=name, spawn=args.rerun_spawn,
                                    batch_frames=args.flush_every))
     except VidtrackError:
-        for sink in sinks:
-            sink.close()
+        close_and_remove(sinks)  # no empty boxes file beside an unwritable video
         raise
 
     total = len(source) or None
@@ -256,7 +259,13 @@ def run_reproduce(argv: Sequence[str]) -> int:
         from .sinks.base import open_text_output
 
         json_out = open_text_output(args.json)  # fail before a long run, not after
-    result = module.run(args, lambda it=None, **kw: progress_bar(it, quiet=args.quiet, unit="run", **kw))
+    try:
+        result = module.run(args, lambda it=None, **kw: progress_bar(it, quiet=args.quiet, unit="run", **kw))
+    except BaseException:
+        if json_out is not None:  # no empty JSON file after a failed run
+            json_out.close()
+            Path(args.json).unlink(missing_ok=True)
+        raise
     print(module.format_table(result))
     if json_out is not None:
         json.dump(result, json_out, indent=2)

@@ -6,7 +6,7 @@ import time
 from dataclasses import dataclass
 from typing import Callable, Iterable, Sequence
 
-from .sinks.base import Sink
+from .sinks.base import Sink, close_and_remove
 from .tracker import Tracker
 from .types import Box, Frame, TrackState
 
@@ -42,7 +42,9 @@ def run_tracker(tracker: Tracker, frames: Iterable[Frame], init_box: Box, sinks:
     The sinks are always closed, also after an exception or Ctrl-C (which is
     swallowed and reported as ``interrupted``), so every frame already tracked
     is on disk.  ``validate_box(first_frame, box)`` may raise to reject the
-    init box once the frame size is known.
+    init box once the frame size is known.  When that (or anything else)
+    raises before the first frame is written, the sinks' files are removed:
+    bad input leaves no empty output behind.
     """
     result = RunResult()
     try:
@@ -66,6 +68,10 @@ def run_tracker(tracker: Tracker, frames: Iterable[Frame], init_box: Box, sinks:
                 on_state(state)
     except KeyboardInterrupt:
         result.interrupted = True
+    except BaseException:
+        if result.frames == 0:  # bad input found at the first frame: leave no empty output behind
+            close_and_remove(sinks)
+        raise
     finally:
         for sink in sinks:
             sink.close()

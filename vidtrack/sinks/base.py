@@ -38,3 +38,12 @@ def open_text_output(path: str | Path) -> IO[str]:
         return open(path, "w", buffering=1, encoding="utf-8")
     except OSError as exc:
         raise OutputError(f"cannot write {path}: {exc.strerror or exc}") from None
+
+
+def close_and_remove(sinks) -> None:
+    """Close ``sinks`` and delete the files they created (outputs of a run that wrote no frame)."""
+    for sink in sinks:
+        sink.close()
+        path = getattr(sink, "path", None)
+        if path is not None and Path(path).is_file():
+            Path(path).unlink(missing_ok=True)
