@@ -87,6 +87,7 @@ CASES: dict[str, tuple[list[str], str]] = {
                                                 "expected 4 numbers"),
     "eval: ground truth longer than the images": (["eval", "{gt_long}", "--filter", "kalman-cv"], "4 rows"),
     "eval: nothing annotated": (["eval", "{gt_zero}", "--filter", "kalman-cv"], "no annotated"),
+    "eval: images of two sizes": (["eval", "{gt_mixed}", "--filter", "kalman-cv"], "0001.png is 80x60"),
     "eval: --jobs 0": (["eval", "{dataset}", "--filter", "kalman-cv", "--jobs", "0"], "at least 1"),
     "eval: --max-frames 0": (["eval", "{dataset}", "--filter", "kalman-cv", "--max-frames", "0"], "at least 1"),
     # -- vidtrack learn
@@ -179,6 +180,9 @@ def corpus_files(tmp: Path) -> dict[str, str]:
     files["gt_three"] = str(_sequence(tmp / "bad3", "Three", ["10,10,20,20", "10,10,20", "10,10,20,20"]))
     files["gt_long"] = str(_sequence(tmp / "bad4", "Long", ["10,10,20,20"] * 4))
     files["gt_zero"] = str(_sequence(tmp / "bad5", "Zero", ["0,0,0,0"] * 3))
+    mixed = _sequence(tmp / "bad6", "Mixed", ["10,10,20,20"] * 3)
+    _frames(tmp / "bad6" / "Mixed" / "img", [(64, 48), (80, 60)])
+    files["gt_mixed"] = str(mixed)
     return files
 
 

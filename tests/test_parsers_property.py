@@ -24,7 +24,7 @@ any_float = st.floats(allow_nan=True, allow_infinity=True)
 separators = st.sampled_from([",", ", ", " ", "\t", "  ", ",\t", ";"])
 line_ends = st.sampled_from(["\n", "\r\n"])
 
-SETTINGS = settings(max_examples=150, deadline=None)
+SETTINGS = settings(max_examples=150, deadline=None, database=None)  # no .hypothesis/ folder
 
 
 @SETTINGS
