@@ -77,6 +77,9 @@ def test_kill_9_of_eval_then_again_equals_an_uninterrupted_run(tmp_path):
     run_and_kill(["eval", *command, "-q", "--out", str(killed)], killed / "kalman-cv" / "Alpha.json", 0, cwd=tmp_path)
     assert not (killed / "summary.json").exists()
     assert not (killed / "kalman-cv" / "Beta.json").exists()
+    # a result cut short without its record (as a writer killed half-way would leave it) is not reused
+    (killed / "kalman-cv" / "Beta.txt").write_text("1,1,16,16\n" * 10)
+    (killed / "kalman-cv" / "Beta.txt.part").write_text("1,1,16")
     again = subprocess.run([sys.executable, "-m", "vidtrack", "eval", *command, "--out", str(killed)],
                            cwd=tmp_path, capture_output=True, text=True, timeout=300)
     assert again.returncode == 0, again.stderr
