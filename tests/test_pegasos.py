@@ -54,3 +54,11 @@ def test_partial_fit_continues_and_minibatches_are_seeded():
     a.partial_fit(X, y)
     assert a.t_ == 100
     assert np.mean(np.sign(a.decision_function(X)) == y) == 1.0
+
+
+def test_untrained_svm_scores_zero_like_w_equal_zero():
+    # mil on a whole-frame box has no negative superpixel: it never trains, and must not crash
+    svm = PegasosSVM()
+    assert np.array_equal(svm.decision_function(np.ones((4, 3))), np.zeros(4))
+    svm.partial_fit(np.ones((2, 3)), np.ones(2), n_iter=0)
+    assert np.array_equal(svm.decision_function(np.ones((4, 3))), np.zeros(4))
