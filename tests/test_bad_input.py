@@ -115,7 +115,8 @@ CASES: dict[str, tuple[list[str], str]] = {
 }
 
 #: vidtrack (track) cases get these outputs too, so a half file would show up in {out}.
-TRACK_OUTPUTS = ["--boxes", "{out}/b.txt", "--log", "{out}/l.csv", "--quiet"]
+#: No --quiet: the progress bar must not add to the one line either.
+TRACK_OUTPUTS = ["--boxes", "{out}/b.txt", "--log", "{out}/l.csv"]
 SUBCOMMANDS = ("eval", "learn", "reproduce", "bench")
 
 

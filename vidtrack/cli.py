@@ -98,8 +98,9 @@ def progress_bar(iterable=None, *, total=None, desc=None, quiet=False, unit="fra
     from tqdm import tqdm
 
     interactive = sys.stderr.isatty()
+    # delay: no bar before the first second, so an error found at the first frame stays one line
     return tqdm(iterable, total=total, desc=desc, unit=unit, disable=quiet, file=sys.stderr,
-                dynamic_ncols=True, leave=False, mininterval=0.2 if interactive else 10.0)
+                dynamic_ncols=True, leave=False, mininterval=0.2 if interactive else 10.0, delay=1.0)
 
 
 # ---------------------------------------------------------------- track
@@ -182,9 +183,11 @@ def run_track(argv: Sequence[str]) -> int:
     if args.max_frames is not None and total is not None:
         total = min(total, args.max_frames)
     bar = progress_bar(total=total, desc=name, quiet=args.quiet)
-    result = run_tracker(tracker, source, init_box, sinks, max_frames=args.max_frames,
-                         on_state=lambda state: bar.update(1), validate_box=check_box_in_frame)
-    bar.close()
+    try:
+        result = run_tracker(tracker, source, init_box, sinks, max_frames=args.max_frames,
+                             on_state=lambda state: bar.update(1), validate_box=check_box_in_frame)
+    finally:
+        bar.close()
     written = [str(s.path) for s in sinks if getattr(s, "path", None)]
     if not args.quiet:
         print(f"vidtrack: {name} tracked {result.frames} frames at {result.fps:.1f} fps, "
