@@ -74,12 +74,18 @@ class MILKalmanFilter:
         Factor on the velocities per frame without a measurement.
     size_limits
         The size stays within these multiples of the initial size.
+    size_damping
+        Factor on the size velocities ``v_d`` at every prediction (0: the size
+        is a random walk).  A constant size rate learned from a few frames of
+        scale change otherwise keeps shrinking or growing the box after the
+        change has stopped (measured sizes equal to the prediction give no
+        innovation to stop it).
     """
 
-    def __init__(self, *, q_centre: float = 0.1, q_size: float = 0.004, r_centre: float = 0.08,
-                 r_size: float = 50.0, initial_sigma: float = 0.05, lost_below: float = 0.15,
+    def __init__(self, *, q_centre: float = 0.1, q_size: float = 0.01, r_centre: float = 0.08,
+                 r_size: float = 0.05, initial_sigma: float = 0.05, lost_below: float = 0.15,
                  gate: float = 25.0, coast_damping: float = 0.5,
-                 size_limits: tuple[float, float] = (0.5, 2.0)) -> None:
+                 size_limits: tuple[float, float] = (0.25, 4.0), size_damping: float = 0.9) -> None:
         self.q_centre = q_centre
         self.q_size = q_size
         self.r_centre = r_centre
@@ -89,6 +95,7 @@ class MILKalmanFilter:
         self.gate = gate
         self.coast_damping = coast_damping
         self.size_limits = size_limits
+        self.size_damping = size_damping
 
     def initialize(self, box: Box, frame: Frame | None = None) -> None:
         self.scale_ = box.scale
@@ -108,6 +115,7 @@ class MILKalmanFilter:
 
     def predict(self) -> Estimate:
         self.x_, self.P_ = kf_predict(self.x_, self.P_, self.F_, self.Q_)  # x = F x, P = F P F' + Q
+        self.x_[[5, 7]] *= self.size_damping
         self._clamp()
         self.estimate_ = Estimate(self._box(), self.C_ @ self.P_ @ self.C_.T,
                                   self.estimate_.confidence, self.estimate_.status)

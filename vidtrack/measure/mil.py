@@ -45,39 +45,53 @@ Where the paper is unclear (or garbled in the extracted text), this module assum
   distance from the predicted centre (E may depend on x, sec. 1.2);
 * the measured centre comes from the smoothed inlier map (fig. 3's "smoothed
   score used to select the bounding box location"); the extent of a partial
-  inlier set is not the object's size, so the size is measured only when the
-  inliers cover ``size_coverage`` of the box and, by default, with a noise
-  (``r_size``) so large that the size stays in effect at its initial value:
-  on the test sequences a measured size shrank the box to half its height
-  within 60 frames.
+  inlier set is not the object's size, so with ``size_from="inliers"`` (the
+  paper's ``h_2``) the size is measured only when the inliers cover
+  ``size_coverage`` of the box; on the benchmark sequences such a measured
+  size shrank the box to half its height within 60 frames, which is why the
+  default measures the size with the correlation filter's scale estimate.
 
-Extensions beyond the seed (documented departures, each switchable):
+Extensions beyond the seed (documented departures, each switchable; the
+ablation in the README shows what each buys):
 
-* centre refinement (``refine="ncc"``): superpixel evidence places the centre
-  only to within a superpixel or so, so the inlier-based centre is refined by
+* correlation-filter refinement (``refine="cf"``, the default): a
+  discriminative correlation filter on HOG and Lab cells
+  (:class:`~vidtrack.measure.correlation.CorrelationFilter`, learned from the
+  posterior box of confident frames) is evaluated on a window around the
+  prediction; the measured centre is where its response (divided by its
+  peak) less ``cf_motion`` times the squared distance from the inlier-based
+  centre (box units) peaks (:func:`~vidtrack.measure.correlation.fuse_peak`),
+  so superpixel evidence and the filter vote together.  Below ``cf_min``
+  quality the inlier centre is kept and the measurement's quality is scaled
+  down by ``quality / cf_min``;
+* scale (``size_from="cf"``): the size is DSST's scale-filter estimate at the
+  detected centre; the Kalman filter smooths it (``r_size``, ``q_size``)
+  with the size rate decaying by ``size_damping`` per frame (see
+  :class:`~vidtrack.filters.mil.MILKalmanFilter`);
+* failure and recovery: with no inlier measurement, a correlation peak of
+  quality at least ``cf_reacquire`` is the measurement.  While lost the
+  filter (restricted to the target's own cells, so a static background the
+  target left does not fire) is slid over the region the prediction may be in
+  (``redetect_margin`` box sizes plus ``lam sigma``, eq. 8) and, after
+  ``global_after`` lost frames, every ``global_every`` frames over the whole
+  frame; the window is then searched around the best peak;
+* centre refinement by NCC (``refine="ncc"``, the previous default):
   normalised cross-correlation (:func:`match_templates`) of a grey template
-  of the object within ``ncc_radius`` box sizes of it; the template is the
-  first frame's patch together with a running average (rate ``ncc_rate``)
-  updated only from confident frames whose match reached ``ncc_min``; the
-  two NCC maps are averaged (``ncc_combine``: with their maximum the running
-  template drifted off the face on David).  The
-  match maximises the NCC minus ``ncc_motion`` times the squared
-  displacement from the inlier-based centre (in box units).  A match below
-  ``ncc_min`` keeps the superpixel centre; the measurement's quality falls
-  linearly to 0 as the match falls from ``ncc_min`` to ``ncc_floor`` (by
-  default the two are equal: a match under 0.45 drops the measurement).  A
-  partly occluded object gives a biased inlier centroid: better to coast on
-  the prediction (``lost``) than to follow it back (on ``data/sample.mp4``
-  following it reversed the velocity and the track never re-acquired);
-* the measurement noise ``r_centre = 0.08`` (was 0.15 for the superpixel-only
-  centre): the refined centre is more precise; while lost the velocities
-  decay by ``coast_damping = 0.5`` per frame (was 0.7): a long coast on a
-  velocity learned just before the loss carried the prediction away on David
-  more often than it carried it through an occlusion (re-acquisition, below,
-  handles the occluder of ``data/sample.mp4`` either way);
-* re-acquisition: with no inlier measurement the template is searched over
-  the whole covariance-enlarged window (``lam sigma`` around the prediction)
-  and accepted above ``ncc_reacquire``;
+  of the object within ``ncc_radius`` box sizes of the inlier centre; the
+  template is the first frame's patch together with a running average
+  (rate ``ncc_rate``) updated only from confident frames whose match reached
+  ``ncc_min``; the two NCC maps are averaged (``ncc_combine``).  The match
+  maximises the NCC minus ``ncc_motion`` times the squared displacement
+  from the inlier-based centre (in box units).  A match below ``ncc_min``
+  keeps the superpixel centre; the measurement's quality falls linearly to
+  0 as the match falls from ``ncc_min`` to ``ncc_floor``; with no inliers
+  the template is searched over the covariance-enlarged window and accepted
+  above ``ncc_reacquire``;
+* the measurement noise ``r_centre = 0.08`` (the refined centre is more
+  precise than a superpixel centroid); while lost the velocities decay by
+  ``coast_damping = 0.5`` per frame: a long coast on a velocity learned just
+  before the loss carried the prediction away more often than it carried it
+  through an occlusion;
 * while lost, the positive bag and the graph cut's spatial prior are enlarged
   by ``lam sigma`` as well (``lost_bag``), so that inliers can be found
   wherever eq. 8's search region says the object may be.
@@ -96,6 +110,7 @@ from ..learn.graphcut import select_inliers
 from ..learn.pegasos import PegasosSVM
 from ..types import LOST, TRACKING, Box, Estimate, Frame, Superpixels
 from . import superpixels as sp
+from .correlation import CorrelationFilter, CorrelationResult, fuse_peak
 from .image import cut_patch, match_templates, to_gray
 
 # ------------------------------------------------------------------ pure maths
@@ -268,8 +283,29 @@ class MILMeasurer:
         While the prior is ``lost``, enlarge the positive bag and the spatial
         prior's scale by ``lam sigma`` (capped by ``max_extra``) per side.
     refine
-        ``"ncc"``: refine the measured centre by template matching
-        (:func:`match_templates`, an extension beyond the paper); ``"none"``: do not.
+        ``"cf"``: fuse the inlier centre with the correlation filter's response
+        (:func:`~vidtrack.measure.correlation.fuse_peak`); ``"ncc"``: refine
+        it by template matching (:func:`match_templates`); ``"none"``: the
+        inlier centre (the paper).  The first two are extensions beyond the paper.
+    size_from
+        Where the measured size comes from: ``"cf"`` the correlation filter's
+        scale estimate, ``"inliers"`` the inlier extent (the paper's ``h_2``),
+        ``"none"`` nowhere (the predicted size).
+    cf_min
+        Correlation quality (PSR-based, [0, 1]) from which its peak moves the
+        centre and its scale sets the size; below it the measurement's quality
+        is scaled by ``quality / cf_min``.
+    cf_motion
+        Weight of the squared distance (box units) from the inlier centre in the fusion.
+    cf_reacquire
+        With no inlier measurement, a correlation peak of this quality is the measurement.
+    cf_learn_above, cf_learning_rate, cf_padding
+        The correlation filter learns from frames whose detection reached this
+        quality, at this rate; its window is the box grown by ``cf_padding``.
+    redetect_margin
+        While lost, the filter is slid over this many box sizes (plus ``lam sigma``) each side of the prediction.
+    global_after, global_every
+        After this many lost frames, every ``global_every`` frames, the whole frame is searched.
     ncc_radius
         The refinement searches this fraction of the box size around the inlier-based centre.
     ncc_min
@@ -304,10 +340,13 @@ class MILMeasurer:
                  feature_order: int = 1, min_inlier_fraction: float = 0.1, locate: str = "smoothed",
                  spatial_prior: float = 1.0, learn_above: float = 0.5,
                  size_coverage: float = 0.6, positive_margin: float = 0.0,
-                 outliers_negative: bool = True, lost_bag: bool = True, refine: str = "ncc",
+                 outliers_negative: bool = True, lost_bag: bool = True, refine: str = "cf",
                  ncc_radius: float = 0.3, ncc_min: float = 0.45, ncc_rate: float = 0.05,
                  ncc_motion: float = 0.4, ncc_reacquire: float = 0.7, ncc_floor: float | None = 0.45,
                  svm_average: bool = False, ncc_combine: str = "mean",
+                 size_from: str = "cf", cf_min: float = 0.15, cf_motion: float = 0.2, cf_reacquire: float = 0.9,
+                 cf_learn_above: float = 0.2, cf_learning_rate: float = 0.02, cf_padding: float = 2.5, redetect_margin: float = 1.5,
+                 global_after: int = 10, global_every: int = 5,
                  rng: np.random.Generator | int | None = None) -> None:
         self.lam = lam
         self.pad = pad
@@ -348,6 +387,16 @@ class MILMeasurer:
         self.ncc_floor = ncc_floor
         self.svm_average = svm_average
         self.ncc_combine = ncc_combine
+        self.size_from = size_from
+        self.cf_min = cf_min
+        self.cf_motion = cf_motion
+        self.cf_reacquire = cf_reacquire
+        self.cf_learn_above = cf_learn_above
+        self.cf_learning_rate = cf_learning_rate
+        self.cf_padding = cf_padding
+        self.redetect_margin = redetect_margin
+        self.global_after = global_after
+        self.global_every = global_every
         self.rng = rng
 
     # -- helpers --------------------------------------------------------
@@ -356,6 +405,28 @@ class MILMeasurer:
         now = time.perf_counter()
         self.timings_[name] += now - start
         return now
+
+    def _correlate(self, frame: Frame, prior: Estimate, sigma: np.ndarray) -> CorrelationResult:
+        """The correlation filter's detection around the prior; while lost, around the best peak of a wider search.
+
+        The re-detection region reaches ``redetect_margin`` box sizes plus
+        ``lam sigma`` (eq. 8) on each side of the prediction; after
+        ``global_after`` lost frames, every ``global_every`` frames, it is the
+        whole frame.
+        """
+        t0 = time.perf_counter()
+        size = prior.box.size
+        centre = prior.box.center
+        if prior.status == LOST:
+            if self.lost_run_ >= self.global_after and self.lost_run_ % max(self.global_every, 1) == 0:
+                centre = np.array([frame.width / 2.0, frame.height / 2.0])
+                region = np.array([frame.width, frame.height], float)
+            else:
+                region = size * (1.0 + 2.0 * self.redetect_margin) + 2.0 * self.lam * sigma
+            centre = self.cf_.search(frame.image, centre, region, size).centre   # target only: no stale context
+        result = self.cf_.detect(frame.image, centre, size)
+        self._tic("correlation", t0)
+        return result
 
     def _superpixels(self, frame: Frame, center, size, sigma):
         t0 = time.perf_counter()
@@ -419,6 +490,14 @@ class MILMeasurer:
         self.last_: _FrameData | None = None
         self.template0_ = self.template_ = None
         self.ncc_peak_ = -1.0
+        self.cf_ = None
+        self.cf_result_: CorrelationResult | None = None
+        self.lost_run_ = 0
+        if self.refine == "cf" or self.size_from == "cf":
+            t0 = time.perf_counter()
+            self.cf_ = CorrelationFilter(learning_rate=self.cf_learning_rate, padding=self.cf_padding)
+            self.cf_.initialize(frame.image, box)
+            self._tic("correlation", t0)
         out = self._superpixels(frame, box.center, box.size, np.zeros(2))
         if out is None:
             self.initial_ = (np.zeros((0, 1)), np.zeros(0), 0)
@@ -456,6 +535,9 @@ class MILMeasurer:
         sigma = np.zeros(2)
         if prior.covariance is not None:
             sigma = np.sqrt(np.maximum(np.diag(prior.covariance)[:2], 0.0))
+        self.lost_run_ = self.lost_run_ + 1 if prior.status == LOST else 0
+        cf = self._correlate(frame, prior, sigma) if self.cf_ is not None else None
+        self.cf_result_ = cf
         out = self._superpixels(frame, prior.box.center, prior.box.size, sigma)
         if out is None:
             return None
@@ -517,7 +599,21 @@ class MILMeasurer:
                         quality *= float(np.clip((self.ncc_peak_ - self.ncc_floor)
                                                  / max(self.ncc_min - self.ncc_floor, 1e-6), 0.0, 1.0))
                 fx, fy = region.to_frame(centre[0], centre[1])
-                box = Box.from_center(float(fx), float(fy), size[0] / region.scale, size[1] / region.scale)
+                # the paper's h_2: the inlier extent ("inliers"); otherwise the prediction's size unless the
+                # correlation filter's scale estimate replaces it below
+                size = size / region.scale if self.size_from == "inliers" else prior.box.size
+                if cf is not None:  # extension: fuse with the correlation filter's response
+                    if self.refine == "cf" and cf.quality >= self.cf_min:
+                        fx, fy = fuse_peak(cf, np.array([fx, fy]), self.cf_motion, prior.box.scale)
+                    quality *= float(np.clip(cf.quality / max(self.cf_min, 1e-6), 0.0, 1.0))
+                    if self.size_from == "cf" and cf.quality >= self.cf_min:
+                        size = cf.size
+                box = Box.from_center(float(fx), float(fy), float(size[0]), float(size[1]))
+        if box is None and cf is not None and self.refine == "cf" and cf.quality >= self.cf_reacquire:
+            # no inliers: the correlation filter alone re-acquires a clear peak
+            quality = float(cf.quality)
+            size = cf.size if self.size_from == "cf" else prior.box.size
+            box = Box.from_center(float(cf.centre[0]), float(cf.centre[1]), float(size[0]), float(size[1]))
         if box is None and self.template_ is not None and self.ncc_reacquire < 1.0:
             # no inliers: look for the template wherever the prediction may be (lam sigma)
             grey = to_gray(region.image)
@@ -536,6 +632,8 @@ class MILMeasurer:
             "svm_scores": scores[labels].astype(np.float32),
             "inliers": inliers[labels].astype(np.uint8),
         }
+        if cf is not None:
+            stages["correlation"] = cf.response.astype(np.float32)
         return Superpixels(labels=labels, features=features, scores=scores, inliers=inliers, box=box,
                            quality=quality, search_region=region.box, stages=stages)
 
@@ -560,5 +658,10 @@ class MILMeasurer:
                 patch = cut_patch(data.grey, rbox.center, self.template_.shape[::-1])
                 if patch is not None:
                     self.template_ = (1.0 - self.ncc_rate) * self.template_ + self.ncc_rate * patch
+            cf = self.cf_result_
+            if cf is not None and cf.quality >= self.cf_learn_above:
+                t0 = time.perf_counter()
+                self.cf_.update(frame.image, posterior.box)
+                self._tic("correlation", t0)
         if self.t_ % self.update_every == 0 and self.buffer_:
             self._train(self.svm_iter)
