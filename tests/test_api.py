@@ -159,3 +159,21 @@ def test_version_and_python_dash_m():
     result = subprocess.run([sys.executable, "-m", "vidtrack", "--version"], capture_output=True, text=True,
                             timeout=60)
     assert result.returncode == 0 and result.stdout.strip() == f"vidtrack {vidtrack.__version__}"
+
+
+def test_readme_example_tracks_the_sample_in_a_fresh_interpreter():
+    readme = (REPO / "README.md").read_text()
+    section = readme.split("## Using vidtrack from Python", 1)[1].split("\n## ", 1)[0]
+    blocks = [block.split("```", 1)[0] for block in section.split("```python\n")[1:]]
+    assert len(blocks) == 2
+    result = subprocess.run([sys.executable, "-c", "\n".join(blocks)], cwd=REPO, capture_output=True, text=True,
+                            timeout=300)
+    assert result.returncode == 0, result.stderr
+    lines = result.stdout.splitlines()
+    tracked = [line for line in lines if line.startswith("frame ")]
+    assert len(tracked) == len(SAMPLE_GT.read_text().splitlines()) - 1
+    last = [float(v) for v in tracked[-1].split()[2].split(",")]
+    truth = [float(v) for v in SAMPLE_GT.read_text().splitlines()[-1].split(",")]
+    from vidtrack.eval.metrics import iou
+    assert iou([last], [truth])[0] > 0.5      # mil is still on the object at the end of the clip
+    assert lines[-1] == str(list(vidtrack.filters()))
