@@ -1,9 +1,9 @@
 """``vidtrack trax``: any vidtrack tracker as a TraX server, for the VOT toolkit and other TraX clients.
 
 TraX (the protocol the VOT toolkit drives trackers with) runs over the
-process's stdin/stdout, or over a local socket when the client sets
-``TRAX_SOCKET``; the reference implementation, PyPI's ``vot-trax``, handles
-both.  The server answers
+process's stdin/stdout (the toolkit's default, and what the tests use), or
+over a local socket when the client sets ``TRAX_SOCKET``; the reference
+implementation, PyPI's ``vot-trax``, handles both.  The server answers
 
 * ``INITIALIZE`` (image + rectangle): builds a fresh tracker (``--filter``,
   ``--seed``, options) and starts it on the box.  A client may initialise
