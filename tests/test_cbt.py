@@ -189,7 +189,7 @@ def test_cbt_tracks_a_synthetic_target_from_detections(moving_target):
         assert "score_map" in state.stages
     assert np.linalg.norm(state.box.center - boxes[-1].center) < 4.0
     assert state.status == "tracking" and state.confidence > 0.5
-    assert np.any(tracker.filter.counts_[0] > 0)  # learned online from its own estimates
+    assert np.any(tracker.filter.inner.counts_[0] > 0)  # learned online from its own estimates (inside MeasuredSizeFilter)
 
 
 def test_cbt_filter_without_detections_is_lost_and_coasts(moving_target):

@@ -4,8 +4,9 @@ import cv2
 import numpy as np
 import pytest
 
-from vidtrack.filters.mil import (MILKalmanFilter, box_from_state, cut_patch, inlier_measurement,
-                                  locate_inliers, match_templates, state_from_box)
+from vidtrack.filters.mil import MILKalmanFilter, box_from_state, state_from_box
+from vidtrack.measure.image import cut_patch, match_templates
+from vidtrack.measure.mil import (MILMeasurer, inlier_measurement, locate_inliers)
 from vidtrack.measure import superpixels as sp
 from vidtrack.tracker import build_tracker
 from vidtrack.types import Box, Estimate, Frame, Superpixels
@@ -140,3 +141,56 @@ def test_pegasos_iterate_averaging_scores_with_the_mean_iterate():
     assert not np.allclose(plain.decision_function(X), avg.decision_function(X))
     assert np.allclose(avg.decision_function(X), X @ avg.avg_coef_[:-1] + avg.avg_coef_[-1])
     assert np.mean(np.sign(avg.decision_function(X)) == y) == 1.0
+
+
+def _textured_scene(size_wh, centre, patch, shape=(240, 320)):
+    """A smooth background with ``patch`` resized to ``size_wh`` centred at ``centre`` (clipped at the border)."""
+    bg_rng = np.random.default_rng(21)
+    coarse = bg_rng.random((shape[0] // 16 + 2, shape[1] // 16 + 2, 3)).astype(np.float32)
+    img = np.clip(60 + 120 * cv2.resize(coarse, shape[::-1], interpolation=cv2.INTER_CUBIC), 0, 255).astype(np.uint8)
+    w, h = max(int(round(size_wh[0])), 2), max(int(round(size_wh[1])), 2)
+    target = cv2.resize(patch, (w, h), interpolation=cv2.INTER_LINEAR)
+    x0, y0 = int(round(centre[0] - w / 2)), int(round(centre[1] - h / 2))
+    xs, ys = max(x0, 0), max(y0, 0)
+    xe, ye = min(x0 + w, shape[1]), min(y0 + h, shape[0])
+    if xe > xs and ye > ys:
+        img[ys:ye, xs:xe] = target[ys - y0:ye - y0, xs - x0:xe - x0]
+    return img
+
+
+def _target_patch(seed=3):
+    rng = np.random.default_rng(seed)
+    coarse = rng.random((10, 8, 3)).astype(np.float32)
+    return np.clip(255 * cv2.resize(coarse, (32, 40), interpolation=cv2.INTER_CUBIC), 0, 255).astype(np.uint8)
+
+
+def test_mil_follows_a_target_that_grows_and_shrinks_by_2x():
+    patch = _target_patch()
+    centre, base = np.array([160.0, 120.0]), np.array([30.0, 36.0])
+    frames = 90
+    sizes = [base * 2.0 ** (k / frames) for k in range(frames + 1)]                 # grows 2x ...
+    sizes += [base * 2.0 ** (1 - k / frames) for k in range(1, frames + 1)]         # ... and shrinks back
+    tracker = build_tracker("mil", seed=0)
+    tracker.initialize(Frame(0, _textured_scene(sizes[0], centre, patch)), Box.from_center(*centre, *sizes[0]))
+    widths = {}
+    for k, size in enumerate(sizes[1:], start=1):
+        state = tracker.step(Frame(k, _textured_scene(size, centre, patch)))
+        widths[k] = (state.box.w / size[0], state.box.h / size[1])
+    assert np.allclose(widths[frames], 1.0, atol=0.1)          # at twice the size
+    assert np.allclose(widths[2 * frames], 1.0, atol=0.1)      # and back at the start size
+
+
+def test_mil_redetects_a_target_that_leaves_and_reenters_the_frame():
+    patch = _target_patch(5)
+    size = np.array([30.0, 36.0])
+    path = [np.array([200.0 + 6 * k, 120.0]) for k in range(25)]          # walks out through the right border
+    path += [np.array([400.0, 120.0])] * 20                               # out of view
+    path += [np.array([90.0, 150.0])] * 25                                # re-enters elsewhere and stays
+    tracker = build_tracker("mil", seed=0)
+    tracker.initialize(Frame(0, _textured_scene(size, path[0], patch)), Box.from_center(*path[0], *size))
+    states = [tracker.step(Frame(k, _textured_scene(size, c, patch))) for k, c in enumerate(path[1:], start=1)]
+    out_of_view = states[30:44]
+    assert sum(s.status == "lost" for s in out_of_view) >= 0.8 * len(out_of_view)
+    last = states[-5:]
+    assert all(s.status == "tracking" for s in last)
+    assert all(np.linalg.norm(s.box.center - path[-1]) < 0.25 * np.sqrt(size.prod()) for s in last)

@@ -1,8 +1,8 @@
 """The ``vidtrack`` command line.
 
 ``vidtrack VIDEO --init-box x,y,w,h --filter NAME [options]`` tracks a video;
-subcommands stand beside it: ``filters``, ``eval``, ``reproduce``, ``learn``
-and ``bench``.  Every user error prints one line on stderr and exits with 2.
+subcommands stand beside it: ``filters``, ``eval``, ``reproduce``, ``learn``,
+``bench`` and ``trax``.  Every user error prints one line on stderr and exits with 2.
 """
 
 from __future__ import annotations
@@ -15,6 +15,7 @@ import sys
 from pathlib import Path
 from typing import Sequence
 
+from . import __version__
 from .errors import UsageError, VidtrackError
 
 #: Subcommands implemented in other modules: name -> module with ``main(argv) -> int``.
@@ -22,6 +23,7 @@ EXTERNAL_SUBCOMMANDS = {
     "eval": "vidtrack.eval.cli",
     "learn": "vidtrack.learn_cli",
     "bench": "vidtrack.bench",
+    "trax": "vidtrack.trax_server",
 }
 SUBCOMMANDS = ("filters", "reproduce", *EXTERNAL_SUBCOMMANDS)
 DEFAULT_FILTER = "mil"
@@ -130,6 +132,7 @@ def build_track_parser() -> argparse.ArgumentParser:
     parser.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
     parser.add_argument("--max-frames", type=int, metavar="N", help="stop after N frames")
     parser.add_argument("-q", "--quiet", action="store_true", help="no progress bar or summary")
+    parser.add_argument("--version", action="version", version=f"vidtrack {__version__}")
     return parser
 
 

@@ -86,7 +86,7 @@ def learn_from_video(path: str, init_box: str, *, order: int, max_frames: int | 
     box = parse_box(init_box)
     tracker = build_tracker("cbt", seed=0, order=order, relearn_every=1, prior_weight=prior_weight)
     result = run_tracker(tracker, open_source(path), box, max_frames=max_frames, validate_box=check_box_in_frame)
-    filt = tracker.filter
+    filt = tracker.filter.inner  # CBTFilter inside its MeasuredSizeFilter
     if not np.any([c.sum() > 0 for c in filt.counts_]):
         raise UsageError(f"{path}: the tracker never tracked {order + 1} frames in a row; nothing learned")
     return (CBTModel(filt.d_basis_, filt.D_[0], filt.D_[1]),

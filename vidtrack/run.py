@@ -2,10 +2,10 @@
 
 from __future__ import annotations
 
-import time
 from dataclasses import dataclass
 from typing import Callable, Iterable, Sequence
 
+from .api import VidtrackTracker, track_frames
 from .sinks.base import Sink, close_and_remove
 from .tracker import Tracker
 from .types import Box, Frame, TrackState
@@ -42,23 +42,16 @@ def run_tracker(tracker: Tracker, frames: Iterable[Frame], init_box: Box, sinks:
     The sinks are always closed, also after an exception or Ctrl-C (which is
     swallowed and reported as ``interrupted``), so every frame already tracked
     is on disk.  ``validate_box(first_frame, box)`` may raise to reject the
-    init box once the frame size is known.  When that (or anything else)
-    raises before the first frame is written, the sinks' files are removed:
-    bad input leaves no empty output behind.
+    init box once the frame size is known.  The loop is the Python API's
+    (:func:`vidtrack.api.track_frames`), so both give the same boxes.  When
+    anything raises before the first frame is written, the sinks' files are
+    removed: bad input leaves no empty output behind.
     """
     result = RunResult()
+    runner = VidtrackTracker(tracker)
     try:
-        for frame in frames:
-            if max_frames is not None and result.frames >= max_frames:
-                break
-            start = time.perf_counter()
-            if result.frames == 0:
-                if validate_box is not None:
-                    validate_box(frame, init_box)
-                state = tracker.initialize(frame, init_box)
-            else:
-                state = tracker.step(frame)
-            result.track_seconds += time.perf_counter() - start
+        for frame, state in track_frames(runner, frames, init_box, max_frames=max_frames, validate_box=validate_box):
+            result.track_seconds = runner.seconds
             for sink in sinks:
                 sink.write(frame, state)
             result.frames += 1

@@ -17,11 +17,12 @@ measurement (the plain mean-shift tracker's implicit constant-position model).
 
 from __future__ import annotations
 
+from dataclasses import replace
 from typing import Callable
 
 import numpy as np
 
-from ..types import LOST, TRACKING, Box, Estimate, Frame, Measurement
+from ..types import LOST, TRACKING, Box, Detections, Estimate, Frame, Measurement, ScoreMap
 
 
 def measurement_box(measurement: Measurement | None) -> Box | None:
@@ -159,3 +160,64 @@ class PassThroughFilter:
         else:
             self.estimate_ = Estimate(box, None, quality, TRACKING)
         return self.estimate_
+
+
+def measured_size(measurement: Measurement | None, centre: np.ndarray) -> np.ndarray | None:
+    """The box size ``(w, h)`` a measurement states near ``centre``, if it states one.
+
+    A :class:`~vidtrack.types.ScoreMap` states its ``box_size``;
+    :class:`~vidtrack.types.Detections` the box of the detection nearest
+    ``centre``; measurements carrying a ``box`` its size.
+    """
+    if measurement is None:
+        return None
+    if isinstance(measurement, ScoreMap):
+        return np.asarray(measurement.box_size, float)
+    if isinstance(measurement, Detections):
+        if measurement.boxes is None or len(measurement.points) == 0:
+            return None
+        nearest = int(np.argmin(np.linalg.norm(np.asarray(measurement.points, float) - centre, axis=1)))
+        return np.asarray(measurement.boxes[nearest, 2:], float)
+    box = measurement_box(measurement)
+    return None if box is None else box.size
+
+
+class MeasuredSizeFilter:
+    """A centre filter whose box takes its size from the measurements (composition, one level deep).
+
+    The inner filter tracks the centre (NormalHedge, particle, grid Bayes,
+    CBT keep the init box size); this wrapper replaces the size of every
+    estimate by the last size the measurements stated while the inner
+    filter was ``tracking``, blended at ``rate`` per frame (1: the measured
+    size).  The scale-searching correlation-filter detector makes those
+    filters follow the target's size.
+    """
+
+    def __init__(self, inner, *, rate: float = 1.0) -> None:
+        self.inner = inner
+        self.rate = rate
+
+    def _sized(self, estimate: Estimate) -> Estimate:
+        cx, cy = estimate.box.center
+        self.estimate_ = replace(estimate, box=Box.from_center(cx, cy, *self.size_))
+        return self.estimate_
+
+    def initialize(self, box: Box, frame: Frame | None = None) -> None:
+        self.inner.initialize(box, frame)
+        self.size_ = box.size.copy()
+        self._sized(self.inner.estimate)
+
+    @property
+    def estimate(self) -> Estimate:
+        return self.estimate_
+
+    def predict(self) -> Estimate:
+        return self._sized(self.inner.predict())
+
+    def update(self, measurement: Measurement | None) -> Estimate:
+        estimate = self.inner.update(measurement)
+        if estimate.status == TRACKING:
+            size = measured_size(measurement, estimate.box.center)
+            if size is not None and np.all(np.isfinite(size)) and np.all(size > 0):
+                self.size_ = (1.0 - self.rate) * self.size_ + self.rate * size
+        return self._sized(estimate)

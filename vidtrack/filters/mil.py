@@ -1,10 +1,8 @@
-"""Multiple Instance Filtering (Wnuk & Soatto): a Kalman filter whose inliers an online SVM selects.
+"""Multiple Instance Filtering (Wnuk & Soatto): the Kalman filter on the box.
 
 Model (sec. 1.2, eqs. 2 and 8 of the paper)::
 
     x(t+1) = F x(t) + v(t),          x = [c, v_c, d, v_d]   (centre, its velocity, size, its rate)
-    w(t+1) = stochSubgradIters(w(t), y(t), O(t))          (Pegasos, vidtrack.learn.pegasos)
-    O(t)   = argmin_O E(y(t), w(t), x(t), O)             (graph cut, vidtrack.learn.graphcut)
     h(y(t)_{i in O(t)}) = C x(t) + n(t)                  (centroid and extent of the inliers)
 
 ``F`` is block-diagonal constant velocity and ``C`` picks ``c`` and ``d``.
@@ -13,90 +11,17 @@ d_h, v_dh]`` (a permutation of the paper's ordering), so that
 :func:`vidtrack.filters.kalman.motion_model` builds ``F``, ``Q`` and ``C``;
 prediction and the Joseph-form update are
 :func:`~vidtrack.filters.kalman.kf_predict` and
-:func:`~vidtrack.filters.kalman.kf_update`.
-
-Two pieces sit on the tracker's data path:
-
-* :class:`MILMeasurer` cuts the search region (the prediction enlarged by
-  ``lam = 3`` standard deviations of the predicted centre, eq. 8), computes
-  SLIC superpixels there, their descriptors and chi-squared feature maps,
-  the SVM scores, and the inliers by a graph cut inside the positive bag;
-  the measurement is the centroid and extent of the inlier pixels.  In
-  ``learn`` it relabels the frame's superpixels from the filter's posterior
-  (the semi-supervised loop of eq. 5) into a training set of
-  ``(descriptor, label, time)`` triples kept ``gamma_max = 25`` frames, and
-  takes Pegasos steps every ``update_every = 6`` frames.
-* :class:`MILKalmanFilter` is the Kalman filter on ``x``; no inliers means
-  predict only and status ``lost``.
-
-Where the paper is unclear (or garbled in the extracted text), this module assumes:
-
-* search region: half-extent ``d/2 + pad d + min(3 sigma, max_extra d)`` per
-  axis, ``sigma = sqrt diag(C P C')`` of the centre (eq. 8 keeps only "factor 3");
-  the region is resampled so the box spans about ``object_pixels`` pixels;
-* Pegasos projects on the L2 ball of radius ``1/sqrt(lambda)`` (the Pegasos
-  paper; the extracted text reads "||w||_1 <= 1"), with class-balanced hinge
-  loss, a regularised bias feature, mini-batches and a capped step counter;
-* the first frame's triples stay in the training set (``keep_initial``), the
-  others for ``gamma_max`` frames; nothing is learned from frames whose
-  posterior confidence is under ``learn_above``;
-* the positive bag is the superpixels whose centroid lies in the predicted box
-  (scaled by ``bag_scale``); the cut's unaries add a spatial prior on the
-  distance from the predicted centre (E may depend on x, sec. 1.2);
-* the measured centre comes from the smoothed inlier map (fig. 3's "smoothed
-  score used to select the bounding box location"); the extent of a partial
-  inlier set is not the object's size, so the size is measured only when the
-  inliers cover ``size_coverage`` of the box and, by default, with a noise
-  (``r_size``) so large that the size stays in effect at its initial value:
-  on the test sequences a measured size shrank the box to half its height
-  within 60 frames.
-
-Extensions beyond the seed (documented departures, each switchable):
-
-* centre refinement (``refine="ncc"``): superpixel evidence places the centre
-  only to within a superpixel or so, so the inlier-based centre is refined by
-  normalised cross-correlation (:func:`match_templates`) of a grey template
-  of the object within ``ncc_radius`` box sizes of it; the template is the
-  first frame's patch together with a running average (rate ``ncc_rate``)
-  updated only from confident frames whose match reached ``ncc_min``; the
-  two NCC maps are averaged (``ncc_combine``: with their maximum the running
-  template drifted off the face on David).  The
-  match maximises the NCC minus ``ncc_motion`` times the squared
-  displacement from the inlier-based centre (in box units).  A match below
-  ``ncc_min`` keeps the superpixel centre; the measurement's quality falls
-  linearly to 0 as the match falls from ``ncc_min`` to ``ncc_floor`` (by
-  default the two are equal: a match under 0.45 drops the measurement).  A
-  partly occluded object gives a biased inlier centroid: better to coast on
-  the prediction (``lost``) than to follow it back (on ``data/sample.mp4``
-  following it reversed the velocity and the track never re-acquired);
-* the measurement noise ``r_centre = 0.08`` (was 0.15 for the superpixel-only
-  centre): the refined centre is more precise; while lost the velocities
-  decay by ``coast_damping = 0.5`` per frame (was 0.7): a long coast on a
-  velocity learned just before the loss carried the prediction away on David
-  more often than it carried it through an occlusion (re-acquisition, below,
-  handles the occluder of ``data/sample.mp4`` either way);
-* re-acquisition: with no inlier measurement the template is searched over
-  the whole covariance-enlarged window (``lam sigma`` around the prediction)
-  and accepted above ``ncc_reacquire``;
-* while lost, the positive bag and the graph cut's spatial prior are enlarged
-  by ``lam sigma`` as well (``lost_bag``), so that inliers can be found
-  wherever eq. 8's search region says the object may be.
+:func:`~vidtrack.filters.kalman.kf_update`.  The measurement side (SLIC
+superpixels, Pegasos SVM, graph-cut inliers ``O(t)``, and the extensions)
+is :class:`vidtrack.measure.mil.MILMeasurer`; this module never looks at
+pixels.  No usable measurement means predict only and status ``lost``.
 """
 
 from __future__ import annotations
 
-import time
-from collections import defaultdict
-from dataclasses import dataclass
-
-import cv2
 import numpy as np
 
-from ..learn.graphcut import select_inliers
-from ..learn.pegasos import PegasosSVM
-from ..measure import superpixels as sp
-from ..measure.score_map import to_gray
-from ..types import LOST, TRACKING, Box, Estimate, Frame, Superpixels
+from ..types import LOST, TRACKING, Box, Estimate, Frame, Measurement
 from .kalman import kf_predict, kf_update, motion_model
 
 # ------------------------------------------------------------------ pure maths
@@ -125,155 +50,6 @@ def box_from_state(x: np.ndarray, *, min_size: float = 4.0) -> Box:
     return Box.from_center(x[0], x[2], max(x[4], min_size), max(x[6], min_size))
 
 
-def inlier_measurement(labels: np.ndarray, inliers: np.ndarray, *, weights: np.ndarray | None = None):
-    """Centroid and extent of the inlier pixels (the paper's ``h_1``, ``h_2``), region pixels.
-
-    The extent along each axis is ``sqrt(12 var)``, the side of a uniformly
-    filled box with the same second moment (robust to a few stray pixels,
-    unlike the bounding box of the inliers).
-
-    Parameters
-    ----------
-    labels
-        ``(h, w) int`` superpixel labels.
-    inliers
-        ``(K,) bool`` inlier superpixels.
-    weights
-        Optional ``(K,)`` non-negative weight per superpixel (default 1).
-
-    Returns
-    -------
-    (centre ``(2,)``, size ``(2,)``, mass) or None when there is no inlier pixel.
-    """
-    w_sp = inliers.astype(float) if weights is None else inliers * np.asarray(weights, float)
-    w_pix = w_sp[labels]
-    mass = float(w_pix.sum())
-    if mass <= 0:
-        return None
-    h, w = labels.shape
-    vs, us = np.arange(h, dtype=float), np.arange(w, dtype=float)
-    col = w_pix.sum(axis=0)
-    row = w_pix.sum(axis=1)
-    cu = float(col @ us) / mass
-    cv = float(row @ vs) / mass
-    var_u = float(col @ (us - cu) ** 2) / mass
-    var_v = float(row @ (vs - cv) ** 2) / mass
-    size = np.sqrt(12.0 * np.array([var_u, var_v]) + 1.0)
-    return np.array([cu + 0.5, cv + 0.5]), size, mass
-
-
-def locate_inliers(labels: np.ndarray, weights: np.ndarray, box_size: np.ndarray, start: np.ndarray, *,
-                   iterations: int = 6):
-    """Where the inliers concentrate: peak of the smoothed inlier map, refined by mean shift.
-
-    The paper selects the box location on a smoothed score (its fig. 3).  The
-    per-pixel inlier weight is blurred with a Gaussian of ``box_size / 4``;
-    from its peak (ties broken towards ``start``) a few mean-shift steps with
-    a flat box-sized window move to the centroid of the inlier pixels the box
-    covers; the measurement is that centroid and the extent of those pixels.
-
-    Parameters
-    ----------
-    labels
-        ``(h, w) int`` superpixel labels.
-    weights
-        ``(K,)`` non-negative weight per superpixel (0 for outliers).
-    box_size
-        ``(2,)`` predicted box size ``(w, h)`` in region pixels.
-    start
-        ``(2,)`` predicted centre ``(u, v)`` in region pixels.
-
-    Returns
-    -------
-    (centre ``(2,)``, size ``(2,)``, mass inside the box) or None when no weight.
-    """
-    w_pix = np.asarray(weights, float)[labels].astype(np.float32)
-    if not np.any(w_pix > 0):
-        return None
-    h, w = labels.shape
-    sx, sy = max(box_size[0] / 4.0, 1.0), max(box_size[1] / 4.0, 1.0)
-    smooth = cv2.GaussianBlur(w_pix, (0, 0), sigmaX=sx, sigmaY=sy)
-    vv, uu = np.indices((h, w))
-    d2 = ((uu + 0.5 - start[0]) / box_size[0]) ** 2 + ((vv + 0.5 - start[1]) / box_size[1]) ** 2
-    smooth = smooth * np.exp(-0.5 * d2)  # gentle preference for the prediction on ties
-    v0, u0 = np.unravel_index(int(np.argmax(smooth)), smooth.shape)
-    c = np.array([u0 + 0.5, v0 + 0.5])
-    for _ in range(max(iterations, 1)):
-        x0, y0 = int(round(c[0] - box_size[0] / 2)), int(round(c[1] - box_size[1] / 2))
-        x1, y1 = int(round(c[0] + box_size[0] / 2)), int(round(c[1] + box_size[1] / 2))
-        x0, y0, x1, y1 = max(x0, 0), max(y0, 0), min(x1, w), min(y1, h)
-        win = w_pix[y0:y1, x0:x1]
-        mass = float(win.sum())
-        if mass <= 0:
-            return None
-        col, row = win.sum(axis=0), win.sum(axis=1)
-        us, vs = np.arange(x0, x1) + 0.5, np.arange(y0, y1) + 0.5
-        new = np.array([col @ us, row @ vs]) / mass
-        if np.allclose(new, c, atol=0.25):
-            c = new
-            break
-        c = new
-    var = np.array([col @ (us - c[0]) ** 2, row @ (vs - c[1]) ** 2]) / mass
-    return c, np.sqrt(12.0 * var + 1.0), mass
-
-
-def cut_patch(grey: np.ndarray, centre: np.ndarray, size: tuple[int, int]) -> np.ndarray | None:
-    """The ``(h, w) = size[::-1]`` patch of ``grey`` centred on ``centre`` (None when it leaves the image)."""
-    tw, th = size
-    x0, y0 = int(round(centre[0] - tw / 2.0)), int(round(centre[1] - th / 2.0))
-    if x0 < 0 or y0 < 0 or x0 + tw > grey.shape[1] or y0 + th > grey.shape[0]:
-        return None
-    return grey[y0:y0 + th, x0:x0 + tw].copy()
-
-
-def match_templates(grey: np.ndarray, templates, centre: np.ndarray, radius: np.ndarray, *,
-                    motion_weight: float = 0.0, combine: str = "max"):
-    """Normalised cross-correlation peak of ``templates`` near ``centre`` (the centre refinement).
-
-    The response is the element-wise maximum (``combine="max"``) or mean
-    (``"mean"``) over the templates of
-    ``cv2.matchTemplate(..., TM_CCOEFF_NORMED)`` in a window of
-    ``radius`` pixels around ``centre`` (both region pixels), minus
-    ``motion_weight`` times the squared displacement from ``centre`` in
-    template-size units; the peak is refined to sub-pixel by a parabola.
-
-    Returns
-    -------
-    (centre ``(2,)``, peak NCC in [-1, 1]) or None when the window is smaller than the template.
-    """
-    th, tw = templates[0].shape
-    h, w = grey.shape
-    x0 = max(int(np.floor(centre[0] - tw / 2.0 - radius[0])), 0)
-    y0 = max(int(np.floor(centre[1] - th / 2.0 - radius[1])), 0)
-    x1 = min(int(np.ceil(centre[0] + tw / 2.0 + radius[0])), w)
-    y1 = min(int(np.ceil(centre[1] + th / 2.0 + radius[1])), h)
-    if x1 - x0 < tw + 1 or y1 - y0 < th + 1:
-        return None
-    window = grey[y0:y1, x0:x1]
-    resp = None
-    for t in templates:
-        r = cv2.matchTemplate(window, t, cv2.TM_CCOEFF_NORMED)
-        resp = r if resp is None else (np.maximum(resp, r) if combine == "max" else resp + r)
-    if combine != "max":
-        resp = resp / len(templates)
-    rh, rw = resp.shape
-    us = (np.arange(rw) + x0 + tw / 2.0 - centre[0]) / tw
-    vs = (np.arange(rh) + y0 + th / 2.0 - centre[1]) / th
-    objective = resp - motion_weight * (vs[:, None] ** 2 + us[None, :] ** 2)
-    v, u = np.unravel_index(int(np.argmax(objective)), objective.shape)
-    du = dv = 0.0
-    if 0 < u < rw - 1:
-        a, b, c = objective[v, u - 1], objective[v, u], objective[v, u + 1]
-        den = a - 2 * b + c
-        du = 0.5 * (a - c) / den if den < 0 else 0.0
-    if 0 < v < rh - 1:
-        a, b, c = objective[v - 1, u], objective[v, u], objective[v + 1, u]
-        den = a - 2 * b + c
-        dv = 0.5 * (a - c) / den if den < 0 else 0.0
-    found = np.array([x0 + u + du + tw / 2.0, y0 + v + dv + th / 2.0])
-    return found, float(resp[v, u])
-
-
 # ------------------------------------------------------------------ the filter
 
 
@@ -298,12 +74,18 @@ class MILKalmanFilter:
         Factor on the velocities per frame without a measurement.
     size_limits
         The size stays within these multiples of the initial size.
+    size_damping
+        Factor on the size velocities ``v_d`` at every prediction (0: the size
+        is a random walk).  A constant size rate learned from a few frames of
+        scale change otherwise keeps shrinking or growing the box after the
+        change has stopped (measured sizes equal to the prediction give no
+        innovation to stop it).
     """
 
-    def __init__(self, *, q_centre: float = 0.1, q_size: float = 0.004, r_centre: float = 0.08,
-                 r_size: float = 50.0, initial_sigma: float = 0.05, lost_below: float = 0.15,
+    def __init__(self, *, q_centre: float = 0.1, q_size: float = 0.01, r_centre: float = 0.08,
+                 r_size: float = 0.05, initial_sigma: float = 0.05, lost_below: float = 0.15,
                  gate: float = 25.0, coast_damping: float = 0.5,
-                 size_limits: tuple[float, float] = (0.5, 2.0)) -> None:
+                 size_limits: tuple[float, float] = (0.25, 4.0), size_damping: float = 0.9) -> None:
         self.q_centre = q_centre
         self.q_size = q_size
         self.r_centre = r_centre
@@ -313,6 +95,7 @@ class MILKalmanFilter:
         self.gate = gate
         self.coast_damping = coast_damping
         self.size_limits = size_limits
+        self.size_damping = size_damping
 
     def initialize(self, box: Box, frame: Frame | None = None) -> None:
         self.scale_ = box.scale
@@ -332,6 +115,7 @@ class MILKalmanFilter:
 
     def predict(self) -> Estimate:
         self.x_, self.P_ = kf_predict(self.x_, self.P_, self.F_, self.Q_)  # x = F x, P = F P F' + Q
+        self.x_[[5, 7]] *= self.size_damping
         self._clamp()
         self.estimate_ = Estimate(self._box(), self.C_ @ self.P_ @ self.C_.T,
                                   self.estimate_.confidence, self.estimate_.status)
@@ -354,7 +138,7 @@ class MILKalmanFilter:
         r = np.array([self.r_centre, self.r_centre, self.r_size, self.r_size]) * s
         return np.diag(r ** 2) / max(quality, 0.05)
 
-    def update(self, measurement: Superpixels | None) -> Estimate:
+    def update(self, measurement: Measurement | None) -> Estimate:
         box = None if measurement is None else measurement.box
         quality = 0.0 if measurement is None else float(measurement.quality)
         scalars: dict[str, float] = {}
@@ -381,375 +165,3 @@ class MILKalmanFilter:
         cov = self.C_ @ self.P_ @ self.C_.T
         self.estimate_ = Estimate(self._box(), cov, float(np.clip(quality, 0.0, 1.0)), status, scalars)
         return self.estimate_
-
-
-# ------------------------------------------------------------------ the measurer
-
-
-@dataclass
-class _FrameData:
-    """What ``measure`` computed, kept for ``learn``."""
-
-    region: sp.Region
-    labels: np.ndarray
-    features: np.ndarray
-    inliers: np.ndarray
-    scores: np.ndarray
-    grey: np.ndarray | None = None
-
-
-class MILMeasurer:
-    """Superpixels + Pegasos SVM + graph-cut inliers (the measurement side of MIL filtering).
-
-    Parameters
-    ----------
-    lam
-        Search region factor on the predicted centre's standard deviation (eq. 8; the paper fixes 3).
-    pad
-        Extra context around the predicted box, fraction of its size per side.
-    max_extra
-        Cap on ``lam * sigma`` as a fraction of the box size (bounds the region while lost).
-    object_pixels
-        The region is resampled so the box's ``sqrt(w h)`` spans about this many pixels (never upsampled).
-    superpixels_per_side
-        About this many superpixels across the box side.
-    slic_iterations, slic_ruler
-        SLIC k-means iterations and compactness.
-    positive_fraction
-        Area fraction inside the box for a positive (paper: 0.7).
-    negative_fraction
-        At most this fraction inside the box for a negative when relabelling.
-    gamma_max
-        Frames a training triple is kept (paper: 25).
-    update_every
-        Pegasos update period in frames (paper: 6).
-    svm_lam, svm_iter, svm_init_iter, svm_max_t, svm_batch
-        Pegasos regularisation, iterations per update, at bootstrap, step-counter
-        cap, and mini-batch size (None: the whole training set per step).
-    keep_initial, anchor_weight
-        Keep the first frame's triples in the training set for ever (an anchor
-        against drift), counted ``anchor_weight`` times.
-    bag_scale
-        The positive bag: superpixels whose centroid is inside the predicted box scaled by this.
-    cut_slope, cut_beta
-        Graph cut: slope of the SVM-score sigmoid in the unaries, weight of the pairwise terms.
-    feature_order
-        Frequencies of the chi-squared feature map.
-    min_inlier_fraction
-        Inlier area below this fraction of the box area counts as no measurement.
-    locate
-        ``"smoothed"``: the box goes where the smoothed inlier map peaks
-        (:func:`locate_inliers`); ``"centroid"``: centroid and extent of all
-        inliers (:func:`inlier_measurement`).
-    positive_margin
-        A relabelled positive must also score above this (no self-training on
-        superpixels the SVM does not already believe in).
-    outliers_negative
-        Label the cut's outliers inside the box negative when their score is negative (eq. 5).
-    size_coverage
-        The inlier extent measures the size only when the inliers cover at
-        least this fraction of the predicted box; otherwise the measured size
-        is the predicted one (no size information).
-    learn_above
-        Only frames whose posterior confidence reaches this add training triples.
-    spatial_prior
-        Extra cost of an inlier label growing with the squared normalised
-        distance of the superpixel from the predicted centre (0: SVM scores only).
-    lost_bag
-        While the prior is ``lost``, enlarge the positive bag and the spatial
-        prior's scale by ``lam sigma`` (capped by ``max_extra``) per side.
-    refine
-        ``"ncc"``: refine the measured centre by template matching
-        (:func:`match_templates`, an extension beyond the paper); ``"none"``: do not.
-    ncc_radius
-        The refinement searches this fraction of the box size around the inlier-based centre.
-    ncc_min
-        A match at least this good (normalised cross-correlation) moves the
-        centre and lets the running template learn.
-    ncc_rate
-        Learning rate of the running template (the first frame's template is kept too).
-    ncc_motion
-        Penalty on the squared displacement (template units) from the inlier-based centre.
-    ncc_reacquire
-        With no inliers, a match this good anywhere in the ``lam sigma`` window
-        is the measurement (1 or more: never).
-    ncc_floor
-        The measurement's quality is scaled by ``(peak - ncc_floor) / (ncc_min - ncc_floor)``
-        clipped to [0, 1] (None: not scaled).
-    svm_average
-        Score with the average of the Pegasos iterates of the last update
-        (:class:`~vidtrack.learn.pegasos.PegasosSVM` ``average``).
-    ncc_combine
-        How the first frame's and the running template's NCC maps combine:
-        ``"max"`` or ``"mean"`` (the first frame's template then keeps
-        pulling a drifting running template back).
-    """
-
-    def __init__(self, *, lam: float = 3.0, pad: float = 0.6, max_extra: float = 1.0,
-                 object_pixels: float = 40.0, superpixels_per_side: float = 3.5, slic_iterations: int = 4,
-                 slic_ruler: float = 10.0, positive_fraction: float = 0.7, negative_fraction: float = 0.3,
-                 gamma_max: int = 25, update_every: int = 6, svm_lam: float = 1e-3, svm_iter: int = 40,
-                 svm_init_iter: int = 1000, svm_max_t: int | None = 2000, svm_batch: int | None = 256,
-                 keep_initial: bool = True, anchor_weight: int = 1,
-                 bag_scale: float = 1.15, cut_slope: float = 2.0, cut_beta: float = 1.0,
-                 feature_order: int = 1, min_inlier_fraction: float = 0.1, locate: str = "smoothed",
-                 spatial_prior: float = 1.0, learn_above: float = 0.5,
-                 size_coverage: float = 0.6, positive_margin: float = 0.0,
-                 outliers_negative: bool = True, lost_bag: bool = True, refine: str = "ncc",
-                 ncc_radius: float = 0.3, ncc_min: float = 0.45, ncc_rate: float = 0.05,
-                 ncc_motion: float = 0.4, ncc_reacquire: float = 0.7, ncc_floor: float | None = 0.45,
-                 svm_average: bool = False, ncc_combine: str = "mean",
-                 rng: np.random.Generator | int | None = None) -> None:
-        self.lam = lam
-        self.pad = pad
-        self.max_extra = max_extra
-        self.object_pixels = object_pixels
-        self.superpixels_per_side = superpixels_per_side
-        self.slic_iterations = slic_iterations
-        self.slic_ruler = slic_ruler
-        self.positive_fraction = positive_fraction
-        self.negative_fraction = negative_fraction
-        self.gamma_max = gamma_max
-        self.update_every = update_every
-        self.svm_lam = svm_lam
-        self.svm_iter = svm_iter
-        self.svm_init_iter = svm_init_iter
-        self.svm_max_t = svm_max_t
-        self.svm_batch = svm_batch
-        self.keep_initial = keep_initial
-        self.anchor_weight = anchor_weight
-        self.bag_scale = bag_scale
-        self.cut_slope = cut_slope
-        self.cut_beta = cut_beta
-        self.feature_order = feature_order
-        self.min_inlier_fraction = min_inlier_fraction
-        self.locate = locate
-        self.spatial_prior = spatial_prior
-        self.learn_above = learn_above
-        self.size_coverage = size_coverage
-        self.positive_margin = positive_margin
-        self.outliers_negative = outliers_negative
-        self.lost_bag = lost_bag
-        self.refine = refine
-        self.ncc_radius = ncc_radius
-        self.ncc_min = ncc_min
-        self.ncc_rate = ncc_rate
-        self.ncc_motion = ncc_motion
-        self.ncc_reacquire = ncc_reacquire
-        self.ncc_floor = ncc_floor
-        self.svm_average = svm_average
-        self.ncc_combine = ncc_combine
-        self.rng = rng
-
-    # -- helpers --------------------------------------------------------
-
-    def _tic(self, name: str, start: float) -> float:
-        now = time.perf_counter()
-        self.timings_[name] += now - start
-        return now
-
-    def _superpixels(self, frame: Frame, center, size, sigma):
-        t0 = time.perf_counter()
-        size = np.maximum(np.asarray(size, float), 4.0)
-        extra = np.minimum(self.lam * np.asarray(sigma, float), self.max_extra * size)
-        want = sp.search_box(center, size, extra, pad=self.pad)
-        scale = min(1.0, self.object_pixels / float(np.sqrt(size[0] * size[1])))
-        region = sp.cut_region(frame.image, want, scale=scale)
-        if region is None:
-            return None
-        side = float(np.sqrt(size[0] * size[1])) * region.scale
-        region_size = int(np.clip(round(side / self.superpixels_per_side), 4, 20))
-        labels = sp.slic_labels(region.image, region_size=region_size, ruler=self.slic_ruler,
-                                iterations=self.slic_iterations)
-        t0 = self._tic("superpixels", t0)
-        K = int(labels.max()) + 1
-        desc = sp.superpixel_descriptors(region.image, labels, K)
-        features = sp.chi2_feature_map(desc, order=self.feature_order)
-        self._tic("features", t0)
-        return region, labels, desc, features
-
-    def _templates(self, size: np.ndarray) -> list[np.ndarray]:
-        """The initial and the running template at the current box size in region pixels."""
-        tsize = (max(int(round(size[0])), 3), max(int(round(size[1])), 3))
-        out = []
-        for t in (self.template0_, self.template_):
-            if t.shape[::-1] != tsize:
-                t = cv2.resize(t, tsize, interpolation=cv2.INTER_LINEAR)
-            out.append(t.astype(np.float32))
-        return out
-
-    def _add_triples(self, features: np.ndarray, labels: np.ndarray, t: int) -> None:
-        keep = labels != 0
-        if np.any(keep):
-            self.buffer_.append((features[keep], labels[keep], t))
-
-    def _train(self, n_iter: int) -> None:
-        t0 = time.perf_counter()
-        horizon = self.t_ - self.gamma_max
-        self.training_ = [(X, y, t) for X, y, t in self.training_ + self.buffer_ if t >= horizon]
-        self.buffer_ = []
-        sets = list(self.training_)
-        if self.keep_initial:  # the anchor: the first frame's triples, repeated anchor_weight times
-            sets.extend([self.initial_] * max(1, int(self.anchor_weight)))
-        X = np.concatenate([s[0] for s in sets])
-        y = np.concatenate([s[1] for s in sets])
-        if np.any(y > 0) and np.any(y < 0):
-            self.svm_.partial_fit(X, y, n_iter=n_iter)
-        self._tic("svm", t0)
-
-    # -- Measurer protocol -----------------------------------------------
-
-    def initialize(self, frame: Frame, box: Box) -> None:
-        """Bootstrap the SVM from the first frame: >= 70% inside the box positive, the rest negative (sec. 2.1)."""
-        self.timings_ = defaultdict(float)
-        self.svm_ = PegasosSVM(lam=self.svm_lam, n_iter=self.svm_iter, max_t=self.svm_max_t,
-                               batch_size=self.svm_batch, average=self.svm_average, rng=self.rng)
-        self.t_ = 0
-        self.buffer_: list = []
-        self.training_: list = []
-        self.last_: _FrameData | None = None
-        self.template0_ = self.template_ = None
-        self.ncc_peak_ = -1.0
-        out = self._superpixels(frame, box.center, box.size, np.zeros(2))
-        if out is None:
-            self.initial_ = (np.zeros((0, 1)), np.zeros(0), 0)
-            return
-        region, labels, desc, features = out
-        rbox = region.box_to_region(box)
-        frac = sp.fraction_inside(labels, rbox)
-        y = np.where(frac >= self.positive_fraction, 1, -1)
-        if not np.any(y > 0):  # a box smaller than any superpixel: take the most-inside one
-            y[np.argmax(frac)] = 1
-        self.initial_ = (features, y, 0)
-        # calibrate h: the positives' centroid and extent against the init box
-        self.size_ratio_ = np.ones(2)
-        self.centre_offset_ = np.zeros(2)
-        if self.locate == "centroid":
-            meas = inlier_measurement(labels, y > 0)
-        else:
-            meas = locate_inliers(labels, (y > 0).astype(float), rbox.size, rbox.center)
-        if meas is not None:
-            self.size_ratio_ = np.clip(rbox.size / meas[1], 0.5, 2.0)
-            self.centre_offset_ = (rbox.center - meas[0]) / rbox.size
-        self.training_ = [self.initial_]
-        self._train(self.svm_init_iter)
-        if self.refine == "ncc":
-            tsize = (max(int(round(rbox.w)), 3), max(int(round(rbox.h)), 3))
-            patch = cut_patch(to_gray(region.image), rbox.center, tsize)
-            if patch is not None and float(patch.std()) > 1e-3:
-                self.template0_, self.template_ = patch, patch.copy()
-        self.training_ = [] if self.keep_initial else self.training_
-
-    def measure(self, frame: Frame, prior: Estimate) -> Superpixels | None:
-        """Superpixels of the search region, SVM scores, graph-cut inliers and the inlier box."""
-        self.t_ += 1
-        self.last_ = None
-        sigma = np.zeros(2)
-        if prior.covariance is not None:
-            sigma = np.sqrt(np.maximum(np.diag(prior.covariance)[:2], 0.0))
-        out = self._superpixels(frame, prior.box.center, prior.box.size, sigma)
-        if out is None:
-            return None
-        region, labels, desc, features = out
-        grey = None
-        self.ncc_peak_ = -1.0
-        t0 = time.perf_counter()
-        scores = self.svm_.decision_function(features)
-        t0 = self._tic("svm", t0)
-
-        K = len(scores)
-        area, centroid = sp.label_stats(labels, K)
-        region_box = region.box_to_region(prior.box)
-        bag_box = region.box_to_region(prior.box.scaled(self.bag_scale))
-        norm = region_box.size
-        extra = np.minimum(self.lam * sigma, self.max_extra * prior.box.size) * region.scale
-        if self.lost_bag and prior.status == LOST:  # eq. 8: while lost, look wherever the prediction may be
-            bag_box = Box(bag_box.x - extra[0], bag_box.y - extra[1], bag_box.w + 2 * extra[0],
-                          bag_box.h + 2 * extra[1])
-            norm = norm + 2.0 * extra
-        in_bag = ((centroid[:, 0] >= bag_box.x) & (centroid[:, 0] <= bag_box.x + bag_box.w)
-                  & (centroid[:, 1] >= bag_box.y) & (centroid[:, 1] <= bag_box.y + bag_box.h))
-        pairs, lengths = sp.adjacency(labels)
-        cut_scores = scores
-        if self.spatial_prior > 0:
-            rel = (centroid - region_box.center) / norm * 2.0
-            cut_scores = scores - self.spatial_prior * np.sum(rel ** 2, axis=1)
-        inliers = select_inliers(cut_scores, desc, pairs, lengths, in_bag, slope=self.cut_slope,
-                                 beta=self.cut_beta, area=area)
-        self._tic("graphcut", t0)
-
-        box = None
-        quality = 0.0
-        expected = max(region_box.area, 1.0)
-        if self.locate == "centroid":
-            meas = inlier_measurement(labels, inliers)
-        else:
-            meas = locate_inliers(labels, inliers.astype(float), region_box.size, region_box.center)
-        if meas is not None:
-            centre, size, mass = meas
-            fraction = mass / expected
-            if fraction >= self.min_inlier_fraction:
-                margin = float(np.mean(scores[inliers]))
-                quality = float(min(1.0, fraction / 0.5) / (1.0 + np.exp(-3.0 * margin)))
-                quality = float(np.clip(quality * 2.0, 0.0, 1.0))
-                size = size * self.size_ratio_  # calibrated extent (see initialize)
-                if fraction < self.size_coverage:  # a partial inlier set does not measure the extent
-                    size = region_box.size
-                centre = centre + self.centre_offset_ * size
-                if self.template_ is not None:  # extension: NCC refinement of the inlier-based centre
-                    grey = to_gray(region.image)
-                    found = match_templates(grey, self._templates(region_box.size), centre,
-                                            self.ncc_radius * region_box.size, motion_weight=self.ncc_motion,
-                                            combine=self.ncc_combine)
-                    self.ncc_peak_ = -1.0 if found is None else found[1]
-                    if self.ncc_peak_ >= self.ncc_min:
-                        centre = found[0]
-                    if self.ncc_floor is not None:  # a poor match (occlusion): trust the prediction more
-                        quality *= float(np.clip((self.ncc_peak_ - self.ncc_floor)
-                                                 / max(self.ncc_min - self.ncc_floor, 1e-6), 0.0, 1.0))
-                fx, fy = region.to_frame(centre[0], centre[1])
-                box = Box.from_center(float(fx), float(fy), size[0] / region.scale, size[1] / region.scale)
-        if box is None and self.template_ is not None and self.ncc_reacquire < 1.0:
-            # no inliers: look for the template wherever the prediction may be (lam sigma)
-            grey = to_gray(region.image)
-            size = region_box.size
-            found = match_templates(grey, self._templates(size), region_box.center,
-                                    extra + self.ncc_radius * size, motion_weight=self.ncc_motion,
-                                    combine=self.ncc_combine)
-            if found is not None and found[1] >= self.ncc_reacquire:
-                centre, self.ncc_peak_ = found
-                quality = float(found[1])
-                fx, fy = region.to_frame(centre[0], centre[1])
-                box = Box.from_center(float(fx), float(fy), size[0] / region.scale, size[1] / region.scale)
-        self.last_ = _FrameData(region, labels, features, inliers, scores, grey)
-        stages = {
-            "superpixels": labels,
-            "svm_scores": scores[labels].astype(np.float32),
-            "inliers": inliers[labels].astype(np.uint8),
-        }
-        return Superpixels(labels=labels, features=features, scores=scores, inliers=inliers, box=box,
-                           quality=quality, search_region=region.box, stages=stages)
-
-    def learn(self, frame: Frame, posterior: Estimate) -> None:
-        """Relabel this frame's superpixels from the posterior (eq. 5) and update ``w`` every few frames.
-
-        Positives: inliers with at least ``positive_fraction`` of their area in
-        the posterior box; negatives: superpixels with at most
-        ``negative_fraction`` inside it.  Nothing is learned while lost.
-        """
-        data = self.last_
-        if data is not None and posterior.status == TRACKING and posterior.confidence >= self.learn_above:
-            frac = sp.fraction_inside(data.labels, data.region.box_to_region(posterior.box), len(data.scores))
-            y = np.zeros(len(frac), dtype=int)
-            y[(frac >= self.positive_fraction) & data.inliers & (data.scores > self.positive_margin)] = 1
-            y[frac <= self.negative_fraction] = -1
-            if self.outliers_negative:  # eq. 5: the cut's outliers inside the box are negatives
-                y[(frac > self.negative_fraction) & ~data.inliers & (data.scores < 0)] = -1
-            self._add_triples(data.features, y, self.t_)
-            if data.grey is not None and self.ncc_peak_ >= self.ncc_min and self.ncc_rate > 0:
-                rbox = data.region.box_to_region(posterior.box)
-                patch = cut_patch(data.grey, rbox.center, self.template_.shape[::-1])
-                if patch is not None:
-                    self.template_ = (1.0 - self.ncc_rate) * self.template_ + self.ncc_rate * patch
-        if self.t_ % self.update_every == 0 and self.buffer_:
-            self._train(self.svm_iter)

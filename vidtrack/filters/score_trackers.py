@@ -17,9 +17,10 @@ Online Learning-based Framework for Tracking" (UAI 2010): the same score map
   the true box is modelled as 1 plus Gaussian noise, the analogue of the
   seed's generative model);
 * :class:`GridBayesBoxFilter` -- the exact grid Bayes filter
-  (:mod:`vidtrack.filters.grid_bayes`) over a grid of centres covering the
-  frame with the same random walk and likelihood; cells outside the search
-  window are given the score ``outside_score`` (the detector's "background").
+  (:mod:`vidtrack.filters.grid_bayes`) over a grid of centres that reaches
+  ``extent`` box sizes around the estimate and moves with it, with the same
+  random walk and likelihood; cells outside the detector's window are given
+  the score ``outside_score`` (the detector's "background").
 
 Defaults were chosen the way the seed chose its own (it tuned ``sigma_d``
 for Bayes and ``Sigma_*``, ``alpha`` for NH): by the mean success AUC on the
@@ -284,7 +285,15 @@ class ParticleBoxFilter(_CentreBoxFilter):
 
 
 class GridBayesBoxFilter(_CentreBoxFilter):
-    """Exact grid Bayes filter over box centres covering the frame; see the module docstring.
+    """Exact grid Bayes filter over box centres on a grid that moves with the estimate; see the module docstring.
+
+    The grid is a window of the lattice ``spacing * (i, j)`` (anchored at the
+    frame origin) reaching ``extent`` box sizes on each side of the estimate.
+    Before each prediction it is re-centred on the posterior mean by whole
+    cells (the probability of cells that leave the window is dropped, then
+    the rest renormalised), so the filter's cost depends on the box, not on the
+    frame: a 640x480 frame costs what a 320x240 one does.  Within the window
+    the recursion is exact.
 
     Parameters
     ----------
@@ -292,15 +301,18 @@ class GridBayesBoxFilter(_CentreBoxFilter):
         Grid spacing in box sizes (at least ``min_spacing`` pixels).
     min_spacing
         Smallest grid spacing, pixels (bounds the cost on small boxes).
+    extent
+        Half-width of the grid window, in box sizes (the detector's window reaches about 1.75).
     sigma_d, sigma_s, outside_score, lost_below, radius
         As in :class:`ParticleBoxFilter`.
     """
 
     def __init__(self, cell: float = 0.05, sigma_d: float = 0.1, sigma_s: float = 0.1,
                  outside_score: float = 0.0, lost_below: float = 0.35, radius: float = 0.15,
-                 min_spacing: float = 2.0, rng: np.random.Generator | int | None = None) -> None:
+                 min_spacing: float = 2.0, extent: float = 2.5, rng: np.random.Generator | int | None = None) -> None:
         self.cell = cell
         self.min_spacing = min_spacing
+        self.extent = extent
         self.sigma_d = sigma_d
         self.sigma_s = sigma_s
         self.outside_score = outside_score
@@ -308,22 +320,47 @@ class GridBayesBoxFilter(_CentreBoxFilter):
         self.radius = radius
         self.rng = rng
 
+    def _place(self, corner: tuple[int, int]) -> None:
+        """Put the grid window's first cell at lattice index ``corner = (row, col)``."""
+        self.corner_ = corner
+        self.ys_ = (corner[0] + np.arange(self.shape_[0])) * self.spacing_
+        self.xs_ = (corner[1] + np.arange(self.shape_[1])) * self.spacing_
+        self.gx_, self.gy_ = np.meshgrid(self.xs_, self.ys_)
+        self.centres_ = np.column_stack([self.gx_.ravel(), self.gy_.ravel()])
+
+    def _corner_at(self, centre: np.ndarray) -> tuple[int, int]:
+        return (int(round(centre[1] / self.spacing_)) - self.shape_[0] // 2,
+                int(round(centre[0] / self.spacing_)) - self.shape_[1] // 2)
+
     def initialize(self, box: Box, frame: Frame | None = None) -> None:
         self._start(box, frame)
-        width, height = self.frame_size_ or (int(box.x + 3 * box.w) + 1, int(box.y + 3 * box.h) + 1)
-        spacing = max(self.min_spacing, self.cell * self.scale_)
-        self.xs_ = np.arange(0.0, width + spacing / 2, spacing)
-        self.ys_ = np.arange(0.0, height + spacing / 2, spacing)
-        self.gx_, self.gy_ = np.meshgrid(self.xs_, self.ys_)                 # cell centres, once
-        self.centres_ = np.column_stack([self.gx_.ravel(), self.gy_.ravel()])
-        sigma = max(self.sigma_d * self.scale_, 0.5 * spacing)
-        self.transitions_ = [gaussian_transition(self.ys_, sigma), gaussian_transition(self.xs_, sigma)]
-        p = np.zeros((len(self.ys_), len(self.xs_)))
-        cx, cy = box.center
-        p[np.argmin(np.abs(self.ys_ - cy)), np.argmin(np.abs(self.xs_ - cx))] = 1.0   # prior: the init box
+        self.spacing_ = max(self.min_spacing, self.cell * self.scale_)
+        half = np.ceil(self.extent * box.size / self.spacing_).astype(int)
+        self.shape_ = (2 * int(half[1]) + 1, 2 * int(half[0]) + 1)            # rows, cols
+        self._place(self._corner_at(box.center))
+        sigma = max(self.sigma_d * self.scale_, 0.5 * self.spacing_)
+        self.transitions_ = [gaussian_transition(self.ys_ - self.ys_[0], sigma),
+                             gaussian_transition(self.xs_ - self.xs_[0], sigma)]   # translation-invariant
+        p = np.zeros(self.shape_)
+        p[self.shape_[0] // 2, self.shape_[1] // 2] = 1.0                     # prior: the init box
         self.p_ = grid_predict_separable(p, self.transitions_)
         self.estimate_ = Estimate(box, np.eye(2) * sigma ** 2, 1.0, TRACKING)
         self.stages_ = {}
+
+    def _recentre(self) -> None:
+        """Move the window by whole cells so the posterior mean is at its centre (mass outside dropped)."""
+        mean, _ = self._moments()
+        corner = self._corner_at(mean)
+        dr, dc = corner[0] - self.corner_[0], corner[1] - self.corner_[1]
+        if dr == 0 and dc == 0:
+            return
+        h, w = self.shape_
+        moved = np.zeros_like(self.p_)
+        src = self.p_[max(dr, 0):h + min(dr, 0), max(dc, 0):w + min(dc, 0)]
+        moved[max(-dr, 0):max(-dr, 0) + src.shape[0], max(-dc, 0):max(-dc, 0) + src.shape[1]] = src
+        total = moved.sum()
+        self.p_ = moved / total if total > 0 else np.full_like(moved, 1.0 / moved.size)
+        self._place(corner)
 
     def _moments(self) -> tuple[np.ndarray, np.ndarray]:
         px, py = self.p_.sum(axis=0), self.p_.sum(axis=1)
@@ -340,6 +377,7 @@ class GridBayesBoxFilter(_CentreBoxFilter):
         return np.column_stack([self.xs_[cols], self.ys_[rows], flat[top]])
 
     def predict(self) -> Estimate:
+        self._recentre()
         self.p_ = grid_predict_separable(self.p_, self.transitions_)   # p(x_k | z_1:k-1)
         mean, cov = self._moments()
         self.estimate_ = Estimate(self._box(mean), cov, self.estimate_.confidence, self.estimate_.status)

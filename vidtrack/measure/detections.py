@@ -1,7 +1,8 @@
 """Unassociated detections from a sliding detector's score map.
 
-A frame's detections are the local maxima of the NCC score map (see
-:mod:`vidtrack.measure.score_map`) after non-maximum suppression: every peak
+A frame's detections are the local maxima of a detector's score map (the
+correlation filter of :mod:`vidtrack.measure.correlation` by default, or the
+NCC template of :mod:`vidtrack.measure.score_map`) after non-maximum suppression: every peak
 above ``min_score``, at most ``max_detections``, no two closer than
 ``nms_fraction`` of the box size.  Clutter (peaks on background that look a
 bit like the target) is kept on purpose and nothing associates a detection
@@ -12,13 +13,13 @@ sorts that out, as in "Learning Object Tracking in Image Sequences"
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 from scipy.ndimage import maximum_filter
 
 from ..types import Box, Detections, Estimate, Frame, ScoreMap
-from .score_map import NCCScoreMapMeasurer
+from .detectors import make_detector
 
 
 def score_map_peaks(scores: np.ndarray, *, radius: int, min_score: float = 0.2,
@@ -72,22 +73,28 @@ def detections_from_score_map(score_map: ScoreMap, *, nms_fraction: float = 0.3,
 
 @dataclass
 class DetectionMeasurer:
-    """Detections per frame from the NCC sliding detector around the prior.
+    """Detections per frame from a sliding detector around the prior.
 
     Parameters
     ----------
+    detector
+        ``"cf"``: the correlation-filter detector (its own scale search and
+        re-detection while lost; detection scores are the map's scores times
+        its PSR quality, so a frame without a clear target has weak
+        detections); ``"ncc"``: the grey NCC template.
     margin
-        Search window = prior box grown by this many box sizes on each side.
+        NCC search window = prior box grown by this many box sizes on each side.
+    lost_margin
+        NCC search margin while the prior's status is ``lost`` (a wider search to re-acquire).
     nms_fraction
         Non-maximum suppression radius, as a fraction of the smaller box side.
     min_score
-        Lowest NCC score reported as a detection.
+        Lowest score reported as a detection.
     max_detections
         At most this many detections per frame.
-    lost_margin
-        Search margin while the prior's status is ``lost`` (a wider search to re-acquire).
     """
 
+    detector: str = "cf"
     margin: float = 1.0
     lost_margin: float = 2.0
     nms_fraction: float = 0.3
@@ -95,14 +102,17 @@ class DetectionMeasurer:
     max_detections: int = 10
 
     def initialize(self, frame: Frame, box: Box) -> None:
-        self.detector_ = NCCScoreMapMeasurer(margin=self.margin)
+        self.detector_ = make_detector(self.detector, **({"margin": self.margin} if self.detector == "ncc" else {}))
         self.detector_.initialize(frame, box)
 
     def measure(self, frame: Frame, prior: Estimate) -> Detections | None:
-        self.detector_.margin = self.lost_margin if prior.status == "lost" else self.margin
+        if self.detector == "ncc":
+            self.detector_.margin = self.lost_margin if prior.status == "lost" else self.margin
         score_map = self.detector_.measure(frame, prior)
         if score_map is None:
             return None
+        if self.detector == "cf":
+            score_map = replace(score_map, scores=score_map.scores * np.float32(score_map.quality))
         return detections_from_score_map(score_map, nms_fraction=self.nms_fraction, min_score=self.min_score,
                                          max_detections=self.max_detections)
 

@@ -19,13 +19,7 @@ import cv2
 import numpy as np
 
 from ..types import Box, Estimate, Frame, ScoreMap
-
-
-def to_gray(image: np.ndarray) -> np.ndarray:
-    """``(H, W, 3) uint8`` BGR (or already grey) -> ``(H, W) float32`` grey."""
-    if image.ndim == 3:
-        image = cv2.cvtColor(image, cv2.COLOR_BGR2GRAY)
-    return image.astype(np.float32)
+from .image import to_gray
 
 
 def search_window(prior: Box, margin: float, width: int, height: int) -> Box:

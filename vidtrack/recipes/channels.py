@@ -1,7 +1,7 @@
 """Channel-Based Tracking on video: ``--filter cbt``.
 
-Detections per frame are the local maxima of an NCC sliding detector's score
-map (clutter included, no association; :mod:`vidtrack.measure.detections`);
+Detections per frame are the local maxima of the correlation-filter
+detector's score map (``detector="ncc"``: the NCC template's) (clutter included, no association; :mod:`vidtrack.measure.detections`);
 :class:`~vidtrack.filters.channels.CBTFilter` tracks the box centre from them
 on a cos² channel grid over the frame ("Learning Object Tracking in Image
 Sequences", Felsberg & Larsson).  Its motion model is learned online from its
@@ -11,6 +11,7 @@ own estimates, or loaded from ``--model FILE`` (a ``.npz`` written by
 
 from __future__ import annotations
 
+from ..filters.box import MeasuredSizeFilter
 from ..filters.channels import CBTFilter, CBTModel
 from ..measure.detections import DetectionMeasurer
 from ..tracker import Recipe, Tracker, constructor_options
@@ -25,10 +26,10 @@ def build_cbt(seed=None, model=None, **options) -> Tracker:
         model = CBTModel.load(model)
     if model is not None:
         options.setdefault("order", model.order)
-    return Tracker(DetectionMeasurer(**measurer_options), CBTFilter(model=model, **options))
+    return Tracker(DetectionMeasurer(**measurer_options), MeasuredSizeFilter(CBTFilter(model=model, **options)))
 
 
 RECIPES = {
-    "cbt": Recipe("Channel-Based Tracking (cos² channels, learned motion) on NCC detections", build_cbt,
+    "cbt": Recipe("Channel-Based Tracking (cos² channels, learned motion) on correlation-filter detections", build_cbt,
                   options=_MEASURER_OPTIONS | constructor_options(CBTFilter)),
 }

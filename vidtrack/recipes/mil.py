@@ -1,13 +1,14 @@
 """Multiple Instance Filtering (Wnuk & Soatto): SLIC superpixels, Pegasos SVM and graph-cut inliers in a Kalman filter.
 
-``build(seed=..., **options)``: options naming a :class:`~vidtrack.filters.mil.MILMeasurer`
+``build(seed=..., **options)``: options naming a :class:`~vidtrack.measure.mil.MILMeasurer`
 parameter go to the measurer, those naming a
 :class:`~vidtrack.filters.mil.MILKalmanFilter` parameter to the filter.
 """
 
 from __future__ import annotations
 
-from ..filters.mil import MILKalmanFilter, MILMeasurer
+from ..filters.mil import MILKalmanFilter
+from ..measure.mil import MILMeasurer
 from ..tracker import Recipe, Tracker, constructor_options
 
 

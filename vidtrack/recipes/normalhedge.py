@@ -14,30 +14,18 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..errors import UsageError
 from ..filters.score_trackers import GridBayesBoxFilter, NormalHedgeBoxFilter, ParticleBoxFilter
-from ..measure.score_map import NCCScoreMapMeasurer
+from ..filters.box import MeasuredSizeFilter
+from ..measure.detectors import make_detector
 from ..tracker import Recipe, Tracker
 
-DETECTORS = ("ncc", "face")
 DETECTOR_OPTION = frozenset({"detector"})
 
 
-def make_measurer(detector: str = "ncc", **options):
-    """The score-map measurer named ``detector``."""
-    if detector == "ncc":
-        return NCCScoreMapMeasurer(**options)
-    if detector == "face":
-        from ..measure.face import FaceScoreMapMeasurer, find_face_cascade
-
-        find_face_cascade()  # fail now, with a one-line message, if there is no cascade
-        return FaceScoreMapMeasurer(**options)
-    raise UsageError(f"unknown detector {detector!r}; valid detectors: {', '.join(DETECTORS)}")
-
-
-def _builder(make_filter, default_detector: str = "ncc"):
+def _builder(make_filter, default_detector: str = "cf"):
     def build(seed=None, detector: str = default_detector) -> Tracker:
-        return Tracker(make_measurer(detector), make_filter(np.random.default_rng(seed)))
+        # the box size follows the detector's scale estimate (the cf detector searches scales)
+        return Tracker(make_detector(detector), MeasuredSizeFilter(make_filter(np.random.default_rng(seed))))
     return build
 
 

@@ -1,0 +1,93 @@
+"""Write a copy of benchmark sequences with frames and ground truth scaled by a factor (default 2x).
+
+Frame size must not change what a tracker does when every parameter is in
+units of the box; this makes the check possible::
+
+    python scripts/upscale_sequences.py ../shared/data/sequences /tmp/validate2x \\
+        --sequences Couple,Crossing,Dog,Freeman1,Human8,Jogging,Suv
+    vidtrack eval /tmp/validate2x --filter nh,pf,bayes,cbt,mil --out /tmp/r2x
+
+The copy goes to a folder outside the repository (benchmark data never enters
+the project).  Each sequence is written in the OTB layout (``img/`` +
+``groundtruth_rect.txt``, 1-based boxes: the 0-based pixel box of the
+loader's ``to_pixels`` scaled about the image origin, plus 1); rows that are
+not annotated stay ``0,0,0,0``.  A MIL-layout sequence's run range
+(``*_frames.txt``) is not carried over: the copy holds every frame.  ``attr_list.txt`` is copied for the
+sequences written, when the dataset has one.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+import cv2
+import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+
+from vidtrack.eval.datasets import annotated_rows, load_dataset  # noqa: E402
+from vidtrack.types import Box  # noqa: E402
+
+#: The copy is in the OTB layout, whose boxes are 1-based.
+OTB_ORIGIN = 1
+
+
+def scaled_ground_truth(sequence, factor: float) -> list[str]:
+    """The sequence's ground-truth rows with every annotated box scaled about the image origin."""
+    rows = []
+    annotated = annotated_rows(sequence.ground_truth)
+    for row, ok in enumerate(annotated):
+        if not ok:
+            rows.append("0,0,0,0")
+            continue
+        px = sequence.to_pixels(sequence.ground_truth_box(row))
+        big = Box(px.x * factor + OTB_ORIGIN, px.y * factor + OTB_ORIGIN, px.w * factor, px.h * factor)
+        rows.append(",".join(f"{v:.2f}" for v in big.as_array()))
+    return rows
+
+
+def upscale_sequence(sequence, out: Path, factor: float) -> int:
+    """Write ``sequence`` scaled by ``factor`` under ``out/<name>``; returns the number of frames."""
+    folder = out / sequence.name / "img"
+    folder.mkdir(parents=True, exist_ok=True)
+    for k, path in enumerate(sequence.files):
+        image = cv2.imread(str(path), cv2.IMREAD_UNCHANGED)
+        if image is None:
+            raise SystemExit(f"cannot read {path}")
+        big = cv2.resize(image, None, fx=factor, fy=factor, interpolation=cv2.INTER_LINEAR)
+        suffix = Path(path).suffix.lower()
+        name = folder / f"{k + 1:05d}{suffix if suffix in ('.png', '.jpg', '.jpeg') else '.png'}"
+        params = [cv2.IMWRITE_JPEG_QUALITY, 95] if name.suffix in (".jpg", ".jpeg") else []
+        cv2.imwrite(str(name), big, params)
+    (out / sequence.name / "groundtruth_rect.txt").write_text("\n".join(scaled_ground_truth(sequence, factor)) + "\n")
+    return len(sequence.files)
+
+
+def main(argv=None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("dataset", help="folder of sequence folders")
+    parser.add_argument("out", help="output folder (outside the repository)")
+    parser.add_argument("--sequences", help="comma-separated names (default: all)")
+    parser.add_argument("--factor", type=float, default=2.0, help="scale factor (default 2)")
+    args = parser.parse_args(argv)
+    names = args.sequences.split(",") if args.sequences else None
+    out = Path(args.out)
+    repo = Path(__file__).resolve().parents[1]
+    if out.resolve().is_relative_to(repo):
+        raise SystemExit("write the copy outside the repository")
+    sequences = load_dataset(args.dataset, names)
+    for sequence in sequences:
+        n = upscale_sequence(sequence, out, args.factor)
+        print(f"{sequence.name}: {n} frames x{args.factor:g}")
+    attrs = Path(args.dataset) / "attr_list.txt"
+    if attrs.is_file():
+        keep = {s.name for s in sequences}
+        lines = [line for line in attrs.read_text().splitlines() if line.split("\t")[0].strip() in keep]
+        (out / "attr_list.txt").write_text("\n".join(lines) + "\n")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

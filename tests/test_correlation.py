@@ -1,0 +1,129 @@
+"""The correlation-filter detector: known shifts, scale change, quality on clutter, re-detection."""
+
+import cv2
+import numpy as np
+import pytest
+
+from vidtrack.measure.correlation import (CorrelationFilter, CorrelationScoreMapMeasurer,
+                                          dcf_response, dcf_terms, fuse_peak, gaussian_response,
+                                          peak_to_sidelobe, subpixel_peak)
+from vidtrack.measure.features import cell_features, orientation_cells
+from vidtrack.types import Box, Estimate, Frame
+
+
+def smooth_background(rng, h=240, w=320):
+    coarse = rng.random((h // 16 + 2, w // 16 + 2, 3)).astype(np.float32)
+    bg = cv2.resize(coarse, (w, h), interpolation=cv2.INTER_CUBIC)
+    return np.clip(60 + 120 * bg + rng.normal(0, 3, (h, w, 3)), 0, 255).astype(np.uint8)
+
+
+def random_texture(rng, h=48, w=40):
+    """A target with no period: blurred colour noise, ``(h, w, 3) uint8``."""
+    noise = cv2.resize(rng.random((h // 4, w // 4, 3)).astype(np.float32), (w, h), interpolation=cv2.INTER_CUBIC)
+    return np.clip(255 * noise, 0, 255).astype(np.uint8)
+
+
+def scene(rng, centre, size, patch=None, background=7):
+    """A textured target of ``size`` centred at ``centre`` over a smooth background (seeded by ``background``)."""
+    img = smooth_background(np.random.default_rng(background))
+    w, h = int(round(size[0])), int(round(size[1]))
+    patch = random_texture(rng) if patch is None else patch
+    target = cv2.resize(patch, (w, h), interpolation=cv2.INTER_LINEAR)
+    x0, y0 = int(round(centre[0] - w / 2)), int(round(centre[1] - h / 2))
+    img[y0:y0 + h, x0:x0 + w] = target
+    return img, patch
+
+
+def test_features_shapes_and_orientation():
+    img = np.zeros((32, 32), np.float32)
+    img[:, 16:] = 255.0                       # a vertical edge: horizontal gradient, orientation 0
+    hog = orientation_cells(img, cell=4, bins=9)
+    assert hog.shape == (8, 8, 9)
+    edge_cells = hog[:, 3:5].reshape(-1, 9)
+    assert np.all(np.argmax(edge_cells, axis=1) == 0) or np.all(np.argmax(edge_cells, axis=1) == 8)
+    assert np.allclose(hog[:, 0], 0.0)        # flat: no gradient
+    colour = cell_features(np.full((16, 24, 3), 128, np.uint8), cell=4)
+    assert colour.shape == (4, 6, 12)
+
+
+def test_dcf_pure_functions_reproduce_the_target_on_the_training_sample():
+    rng = np.random.default_rng(0)
+    shape = (16, 20)
+    f = np.fft.rfft2(rng.normal(size=(*shape, 3)), axes=(0, 1))
+    g = np.fft.rfft2(gaussian_response(shape, 2.0))
+    num, den = dcf_terms(f, g)
+    y = dcf_response(num, den, f, 1e-6, shape)
+    assert np.allclose(y, gaussian_response(shape, 2.0), atol=1e-4)   # eq. 6 of the training sample = g
+    shift, index, peak = subpixel_peak(np.roll(y, (3, -2), axis=(0, 1)))
+    assert index == (3, shape[1] - 2) and np.allclose(shift, [-2, 3], atol=0.05)
+    assert peak_to_sidelobe(y, (0, 0), 2) > 10
+
+
+@pytest.mark.parametrize("dx,dy", [(7, -4), (-11, 5), (0, 9)])
+def test_response_peaks_at_a_known_shift(dx, dy):
+    rng = np.random.default_rng(1)
+    box = Box.from_center(150, 120, 32, 40)
+    img, patch = scene(rng, box.center, box.size)
+    cf = CorrelationFilter()
+    cf.initialize(img, box)
+    moved = cv2.warpAffine(img, np.float32([[1, 0, dx], [0, 1, dy]]), (320, 240), borderMode=cv2.BORDER_REFLECT)
+    result = cf.detect(moved, box.center, box.size)
+    assert np.allclose(result.centre, box.center + (dx, dy), atol=1.0)   # to a pixel
+    assert result.quality > 0.5
+
+
+def test_scale_filter_follows_a_1_5x_scale_change():
+    rng = np.random.default_rng(2)
+    centre, size = np.array([160.0, 120.0]), np.array([32.0, 40.0])
+    img, patch = scene(rng, centre, size)
+    cf = CorrelationFilter()
+    box = Box.from_center(*centre, *size)
+    cf.initialize(img, box)
+    for k in range(1, 31):                    # the target grows 1.5x over 30 frames
+        true = size * 1.5 ** (k / 30)
+        frame, _ = scene(rng, centre, true, patch)
+        result = cf.detect(frame, box.center, box.size)
+        box = Box.from_center(*result.centre, *result.size)
+        cf.update(frame, box)
+    assert abs(box.w / (size[0] * 1.5) - 1.0) < 0.1
+    assert abs(box.h / (size[1] * 1.5) - 1.0) < 0.1
+
+
+def test_quality_falls_when_the_target_is_replaced_by_clutter():
+    rng = np.random.default_rng(3)
+    box = Box.from_center(150, 120, 32, 40)
+    img, patch = scene(rng, box.center, box.size)
+    cf = CorrelationFilter()
+    cf.initialize(img, box)
+    same = cf.detect(scene(rng, box.center, box.size, patch)[0], box.center, box.size)
+    clutter = cf.detect(smooth_background(np.random.default_rng(11)), box.center, box.size)
+    assert same.psr > 2 * clutter.psr
+    assert same.quality > 0.8 and clutter.quality < 0.5
+
+
+def test_search_finds_the_target_far_outside_the_window():
+    rng = np.random.default_rng(4)
+    box = Box.from_center(80, 70, 30, 36)
+    img, patch = scene(rng, box.center, box.size)
+    cf = CorrelationFilter()
+    cf.initialize(img, box)
+    far, _ = scene(rng, (250, 170), box.size, patch)
+    result = cf.search(far, (160, 120), (320, 240), box.size)
+    assert np.linalg.norm(result.centre - (250, 170)) < 0.25 * box.scale
+    # fusing with an anchor far away pulls the peak towards it only when the weight is large
+    local = cf.detect(far, (250, 170), box.size)
+    assert np.allclose(fuse_peak(local, local.centre, 0.0, box.scale), local.centre, atol=1.0)
+
+
+def test_score_map_measurer_follows_size_and_redetects_while_lost():
+    rng = np.random.default_rng(5)
+    box = Box.from_center(100, 100, 30, 36)
+    img, patch = scene(rng, box.center, box.size)
+    m = CorrelationScoreMapMeasurer()
+    m.initialize(Frame(0, img), box)
+    moved, _ = scene(rng, (150, 130), box.size, patch)   # beyond the normal window, within the lost region
+    lost = Estimate(box, None, 0.0, "lost")
+    smap = m.measure(Frame(1, moved), lost)
+    r, c = np.unravel_index(int(np.argmax(smap.scores)), smap.scores.shape)
+    assert np.linalg.norm(smap.box_at(r, c).center - (150, 130)) < 0.3 * box.scale
+    assert smap.quality > 0.5

@@ -1,0 +1,523 @@
+"""A discriminative correlation-filter detector on HOG and colour cells, with a scale search.
+
+The filter is the multi-channel linear correlation filter of the MOSSE/DSST
+family (Bolme et al., "Visual Object Tracking using Adaptive Correlation
+Filters"; Danelljan et al., "Accurate Scale Estimation for Robust Visual
+Tracking").  For a window's features ``f_l`` (``l = 1..d`` channels of
+:func:`vidtrack.measure.features.cell_features`, times a cosine window) and
+a desired response ``g`` (a Gaussian peaked on the target), the filter in
+the Fourier domain is (DSST eq. 4)::
+
+    H_l = conj(G) F_l / (sum_k conj(F_k) F_k + lambda)
+
+kept as a numerator ``A_l`` and denominator ``B`` that are running averages
+over the frames it learns from (DSST eq. 5, learning rate ``eta``)::
+
+    A_l <- (1 - eta) A_l + eta conj(G) F_l,    B <- (1 - eta) B + eta sum_k conj(F_k) F_k
+
+and the response to a new window ``z`` is (DSST eq. 6)::
+
+    y = IFFT( sum_l conj(A_l) Z_l / (B + lambda) )
+
+Everything is measured in units of the target box: the window is the box
+grown by ``padding`` and resampled so that its square-root area spans
+``window_cells`` cells, whatever the frame size, so the cost per frame is
+constant and a 640x480 video behaves like a 320x240 one.  Scale is searched
+by evaluating the same filter on windows of the current size times each of
+``scale_factors`` (the "few scales per frame" of SAMF); the best peak wins,
+with non-unit scales discounted by ``scale_penalty``.
+
+The quality of a response is a peak-to-sidelobe ratio (Bolme et al.):
+``(peak - mean) / std`` of the response outside a small area around the
+peak, mapped linearly from ``psr_low`` (no target: 0) to ``psr_high`` (1).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, replace
+
+import numpy as np
+
+from ..types import Box, Estimate, Frame, ScoreMap
+from .features import cell_features
+from .image import cut_window
+
+# ------------------------------------------------------------------ pure maths
+
+
+def gaussian_response(shape: tuple[int, int], sigma: float) -> np.ndarray:
+    """The desired response: a Gaussian of ``sigma`` cells peaked at cell ``(0, 0)`` (circularly), ``(h, w)``."""
+    h, w = shape
+    dy = np.minimum(np.arange(h), h - np.arange(h))
+    dx = np.minimum(np.arange(w), w - np.arange(w))
+    return np.exp(-0.5 * (dy[:, None] ** 2 + dx[None, :] ** 2) / max(sigma, 1e-3) ** 2)
+
+
+def cosine_window(shape: tuple[int, int]) -> np.ndarray:
+    """Hann window ``(h, w)``, the cosine window that tapers a sample's borders."""
+    return np.outer(np.hanning(shape[0] + 2)[1:-1], np.hanning(shape[1] + 2)[1:-1])
+
+
+def dcf_terms(features_fft: np.ndarray, target_fft: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Numerator ``conj(G) F_l`` ``(h, w', d)`` and denominator ``sum_k |F_k|^2`` ``(h, w')`` of one sample (DSST eq. 4)."""
+    numerator = np.conj(target_fft)[:, :, None] * features_fft
+    denominator = np.sum(features_fft.real ** 2 + features_fft.imag ** 2, axis=2)
+    return numerator, denominator
+
+
+def dcf_response(numerator: np.ndarray, denominator: np.ndarray, features_fft: np.ndarray, lam: float,
+                 shape: tuple[int, int]) -> np.ndarray:
+    """``y = IFFT(sum_l conj(A_l) Z_l / (B + lambda))`` (DSST eq. 6), real ``(h, w)`` with the zero shift at ``(0, 0)``."""
+    spectrum = np.sum(np.conj(numerator) * features_fft, axis=2) / (denominator + lam)
+    return np.fft.irfft2(spectrum, s=shape)
+
+
+def peak_to_sidelobe(response: np.ndarray, peak_index: tuple[int, int], exclude: int) -> float:
+    """Peak-to-sidelobe ratio: ``(peak - mean) / std`` of the response outside ``exclude`` cells of the peak.
+
+    ``response`` is circular (zero shift at ``(0, 0)``), so the excluded
+    square wraps around the borders.
+    """
+    h, w = response.shape
+    r, c = peak_index
+    mask = np.ones((h, w), bool)
+    rows = (np.arange(r - exclude, r + exclude + 1) % h)
+    cols = (np.arange(c - exclude, c + exclude + 1) % w)
+    mask[np.ix_(rows, cols)] = False
+    side = response[mask]
+    if side.size < 2:
+        return 0.0
+    return float((response[r, c] - side.mean()) / (side.std() + 1e-9))
+
+
+def subpixel_peak(response: np.ndarray) -> tuple[np.ndarray, tuple[int, int], float]:
+    """The circular response's peak: shift ``(dx, dy)`` in cells (sub-cell by parabolas), its index and value."""
+    h, w = response.shape
+    r, c = np.unravel_index(int(np.argmax(response)), response.shape)
+    peak = float(response[r, c])
+
+    def offset(a: float, b: float, cc: float) -> float:
+        den = a - 2.0 * b + cc
+        return 0.5 * (a - cc) / den if den < 0 else 0.0
+
+    dr = offset(response[(r - 1) % h, c], peak, response[(r + 1) % h, c])
+    dc = offset(response[r, (c - 1) % w], peak, response[r, (c + 1) % w])
+    sy = r + dr if r <= h // 2 else r + dr - h     # circular index -> signed shift
+    sx = c + dc if c <= w // 2 else c + dc - w
+    return np.array([sx, sy], float), (int(r), int(c)), peak
+
+
+@dataclass(frozen=True)
+class CorrelationResult:
+    """The detector's answer for one window.
+
+    ``centre`` and ``size`` in frame pixels (size = the searched size times
+    the winning scale factor); ``response`` ``(h, w)`` over the window
+    centred on ``window_centre``: cell ``(i, j)`` is the box centred at
+    ``window_centre + ((j - w // 2) step, (i - h // 2) step)``; ``step``
+    frame pixels per response cell; ``scale`` the winning factor; ``peak``,
+    ``psr`` and ``quality`` in ``[0, 1]`` (from the PSR).
+    """
+
+    window_centre: np.ndarray
+    centre: np.ndarray
+    size: np.ndarray
+    response: np.ndarray
+    step: float
+    scale: float
+    peak: float
+    psr: float
+    quality: float
+
+
+@dataclass
+class ScaleFilter:
+    """DSST's separate 1-D scale filter (Danelljan et al., sec. 3.1-3.2).
+
+    ``n_scales`` patches of the target box times ``step ** k`` (``k`` from
+    ``-n_scales // 2`` to ``n_scales // 2``) are resampled to a fixed model
+    size of about ``model_area`` pixels; their cell features (computed in
+    one pass over the patches stacked into one image, so gradients and
+    block normalisation see their neighbour at the seams), flattened and
+    weighted by a Hann window over the scales, are the ``(S, D)`` sample.  A
+    1-D correlation filter along the scale axis (the same eqs. 4-6 with the
+    Fourier transform over scales) is trained towards a Gaussian peaked at
+    ``k = 0``; the best ``k`` of a new sample is the scale change.
+
+    Parameters
+    ----------
+    n_scales, step
+        Number of scales and the ratio between neighbours.
+    model_area
+        Pixels of the resampled patch.
+    learning_rate, lam
+        ``eta`` and ``lambda``.
+    sigma_factor
+        Width of the desired response over scales (DSST's ``1/4``, times ``n_scales / sqrt(33)``).
+    """
+
+    n_scales: int = 17
+    step: float = 1.02
+    model_area: float = 512.0
+    learning_rate: float = 0.025
+    lam: float = 1e-2
+    sigma_factor: float = 0.25
+    cell: int = 4
+    colour: bool = True
+
+    def initialize(self, image: np.ndarray, box: Box) -> None:
+        f = np.sqrt(self.model_area / max(box.area, 1.0))
+        self.model_size_ = tuple(int(max(round(v * f / self.cell), 2) * self.cell) for v in box.size)
+        self.exponents_ = np.arange(self.n_scales) - self.n_scales // 2
+        self.factors_ = self.step ** self.exponents_.astype(float)
+        sigma = self.n_scales / np.sqrt(33.0) * self.sigma_factor
+        self.target_fft_ = np.fft.fft(np.exp(-0.5 * self.exponents_ ** 2 / sigma ** 2))
+        self.window_ = np.hanning(self.n_scales + 2)[1:-1]
+        self.numerator_ = None
+        self.last_sample_fft_ = None
+        self.update(image, box, rate=1.0)
+
+    def sample(self, image: np.ndarray, centre, size) -> np.ndarray:
+        """The ``(S, D)`` multi-scale sample around ``centre`` for a box of ``size``."""
+        # the S resampled patches stacked into one image: one feature pass instead of S
+        patches = [cut_window(image, centre, np.asarray(size, float) * f, self.model_size_) for f in self.factors_]
+        stacked = cell_features(np.concatenate(patches, axis=0), cell=self.cell, colour=self.colour)
+        return stacked.reshape(self.n_scales, -1) * self.window_[:, None]
+
+    def update(self, image: np.ndarray, box: Box, *, rate: float | None = None) -> None:
+        """Learn from the multi-scale sample around ``box``: the one :meth:`estimate` took, when it has one.
+
+        Reusing the estimate's sample (taken at the detected centre, before
+        the scale change) saves the ``n_scales`` resamplings of a second
+        sample; it is off the posterior box by at most one scale step.
+        """
+        rate = self.learning_rate if rate is None else rate
+        f = self.last_sample_fft_
+        self.last_sample_fft_ = None
+        if f is None:
+            f = np.fft.fft(self.sample(image, box.center, box.size), axis=0)
+        num = np.conj(self.target_fft_)[:, None] * f              # conj(G) F_l
+        den = np.sum(f.real ** 2 + f.imag ** 2, axis=1)            # sum_l |F_l|^2
+        if self.numerator_ is None or rate >= 1.0:
+            self.numerator_, self.denominator_ = num, den
+        else:
+            self.numerator_ = (1.0 - rate) * self.numerator_ + rate * num
+            self.denominator_ = (1.0 - rate) * self.denominator_ + rate * den
+
+    def estimate(self, image: np.ndarray, centre, size) -> float:
+        """The scale change of the target around ``centre``: the factor of the best-responding scale."""
+        z = np.fft.fft(self.sample(image, centre, size), axis=0)
+        self.last_sample_fft_ = z
+        response = np.real(np.fft.ifft(np.sum(np.conj(self.numerator_) * z, axis=1) / (self.denominator_ + self.lam)))
+        k = int(np.argmax(response))
+        exponent = float(self.exponents_[k])
+        if 0 < k < len(response) - 1:   # sub-step: the parabola through the peak and its neighbours
+            a, b, c = response[k - 1], response[k], response[k + 1]
+            den = a - 2.0 * b + c
+            if den < 0:
+                exponent += float(np.clip(0.5 * (a - c) / den, -0.5, 0.5))
+        return float(self.step ** exponent)
+
+
+# ------------------------------------------------------------------ the detector
+
+
+@dataclass
+class CorrelationFilter:
+    """Multi-channel DCF on HOG + Lab cells with a scale search; see the module docstring.
+
+    Parameters
+    ----------
+    padding
+        The window is the box grown by this factor (window side = ``(1 + padding)`` box sides).
+    window_cells
+        The window's square-root area in cells (its resolution, whatever the frame size).
+    cell
+        Cell side in resampled pixels.
+    sigma_factor
+        Width of the desired Gaussian response, as a fraction of the box's square-root area.
+    lam
+        Regulariser ``lambda``.
+    learning_rate
+        ``eta`` of the running numerator / denominator.
+    scale_factors
+        Scales the translation filter searches per frame, relative to the
+        current box size (SAMF's search; ``(1.0,)`` leaves scale to the
+        scale filter).
+    scale_penalty
+        Multiplier on the peak of every scale other than 1 (prefers no change).
+    scale_filter
+        Estimate the scale change with DSST's separate :class:`ScaleFilter`
+        at the detected centre.
+    psr_low, psr_high
+        PSR mapped to quality 0 and 1.
+    colour
+        Use the Lab colour channels beside HOG.
+    exclude_cells
+        Half-side of the square around the peak left out of the PSR's sidelobe.
+    quality_from
+        ``"target"``: the quality is the PSR, at the detected peak, of the
+        response of the filter restricted to the box's own cells
+        (:meth:`spatial_filter`), so a window whose context still matches
+        after the target has gone scores low; ``"full"``: the PSR of the
+        full response.
+    """
+
+    padding: float = 2.5
+    window_cells: int = 32
+    cell: int = 4
+    sigma_factor: float = 0.1
+    lam: float = 1e-2
+    learning_rate: float = 0.02
+    scale_factors: tuple[float, ...] = (1.0,)
+    scale_penalty: float = 0.985
+    scale_filter: bool = True
+    psr_low: float = 3.0
+    psr_high: float = 10.0
+    colour: bool = True
+    exclude_cells: int = 2
+    quality_from: str = "target"
+
+    # -- geometry -----------------------------------------------------
+
+    def _layout(self, box_size: np.ndarray) -> None:
+        """Window shape in cells, following the init box's aspect ratio (fixed from then on)."""
+        window = np.asarray(box_size, float) * (1.0 + self.padding)
+        aspect = np.clip(window[0] / max(window[1], 1e-6), 0.25, 4.0)
+        wc = max(int(round(self.window_cells * np.sqrt(aspect))), 8)
+        hc = max(int(round(self.window_cells / np.sqrt(aspect))), 8)
+        self.shape_ = (hc, wc)                                  # cells (rows, columns)
+        self.out_size_ = (wc * self.cell, hc * self.cell)       # resampled pixels (w, h)
+
+    def cell_step(self, box_size) -> float:
+        """Frame pixels per cell for a box of ``box_size``: the window covers ``(1 + padding)`` boxes, square cells."""
+        hc, wc = self.shape_
+        b = np.asarray(box_size, float) * (1.0 + self.padding)
+        return float(max(b[0] / wc, b[1] / hc))
+
+    def window_size(self, box_size) -> np.ndarray:
+        """The window ``(w, h)`` in frame pixels around a box of ``box_size``."""
+        return self.cell_step(box_size) * np.array([self.shape_[1], self.shape_[0]], float)
+
+    def features(self, image: np.ndarray, centre, window: np.ndarray) -> np.ndarray:
+        """Windowed cell features ``(h, w, d)`` of the ``window`` around ``centre``."""
+        patch = cut_window(image, centre, window, self.out_size_)
+        return cell_features(patch, cell=self.cell, colour=self.colour) * self.cos_[:, :, None]
+
+    # -- protocol -----------------------------------------------------
+
+    def initialize(self, image: np.ndarray, box: Box) -> None:
+        """Learn the filter from the first frame's box."""
+        self._layout(box.size)
+        self.cos_ = cosine_window(self.shape_).astype(np.float32)
+        box_cells = box.scale / self.cell_step(box.size)
+        self.box_cells_ = box.size / self.cell_step(box.size)     # the box's (w, h) in cells
+        self.target_fft_ = np.fft.rfft2(gaussian_response(self.shape_, self.sigma_factor * box_cells))
+        self.numerator_ = None
+        self.denominator_ = None
+        self.scale_ = ScaleFilter(colour=self.colour) if self.scale_filter else None
+        if self.scale_ is not None:
+            self.scale_.initialize(image, box)
+        self.update(image, box, rate=1.0)
+
+    def update(self, image: np.ndarray, box: Box, *, rate: float | None = None) -> None:
+        """Learn from the window around ``box`` (DSST eq. 5), and the scale filter from the box."""
+        rate = self.learning_rate if rate is None else rate
+        if self.scale_ is not None and self.numerator_ is not None:
+            self.scale_.update(image, box, rate=None if rate < 1.0 else rate)
+        f = np.fft.rfft2(self.features(image, box.center, self.window_size(box.size)), axes=(0, 1))
+        num, den = dcf_terms(f, self.target_fft_)
+        if self.numerator_ is None or rate >= 1.0:
+            self.numerator_, self.denominator_ = num, den
+        else:
+            self.numerator_ = (1.0 - rate) * self.numerator_ + rate * num
+            self.denominator_ = (1.0 - rate) * self.denominator_ + rate * den
+        if self.quality_from == "target":
+            self.target_filter_fft_ = np.fft.rfft2(self.spatial_filter(target_only=True), axes=(0, 1))
+
+    def respond(self, image: np.ndarray, centre, box_size, scale: float = 1.0) -> tuple[np.ndarray, np.ndarray]:
+        """The circular response of the window of ``box_size * scale`` around ``centre``, and the window's spectrum."""
+        window = self.window_size(np.asarray(box_size, float) * scale)
+        z = np.fft.rfft2(self.features(image, centre, window), axes=(0, 1))
+        return dcf_response(self.numerator_, self.denominator_, z, self.lam, self.shape_), z
+
+    def detect(self, image: np.ndarray, centre, box_size, *, scales: tuple[float, ...] | None = None
+               ) -> CorrelationResult:
+        """Search the window around ``centre`` at each scale; the best peak is the detection."""
+        scales = self.scale_factors if scales is None else scales
+        best = None
+        for s in scales:
+            response, z = self.respond(image, centre, box_size, s)
+            shift, index, peak = subpixel_peak(response)
+            score = peak * (1.0 if s == 1.0 else self.scale_penalty)
+            if best is None or score > best[0]:
+                best = (score, s, response, shift, index, peak, z)
+        _, s, response, shift, index, peak, z = best
+        step = self.cell_step(np.asarray(box_size, float) * s)
+        found = np.asarray(centre, float) + shift * step
+        if self.scale_ is not None and len(scales) == 1:   # DSST: the scale filter at the new position
+            s = s * self.scale_.estimate(image, found, np.asarray(box_size, float) * s)
+        size = np.asarray(box_size, float) * s
+        psr = peak_to_sidelobe(response, index, self.exclude_cells)
+        if self.quality_from == "target":   # is the target itself there? (the context may match without it)
+            target = np.fft.irfft2(np.sum(np.conj(self.target_filter_fft_) * z, axis=2), s=self.shape_)
+            psr = peak_to_sidelobe(target, index, self.exclude_cells)
+        quality = float(np.clip((psr - self.psr_low) / (self.psr_high - self.psr_low), 0.0, 1.0))
+        return CorrelationResult(window_centre=np.asarray(centre, float),
+                                 centre=found, size=size,
+                                 response=np.fft.fftshift(response), step=step, scale=float(s), peak=peak,
+                                 psr=psr, quality=quality)
+
+
+    def spatial_filter(self, *, target_only: bool = True) -> np.ndarray:
+        """The learned filter in the spatial domain, ``(h, w, d)`` cells, target at the window centre.
+
+        ``target_only`` zeroes it outside the box's own cells: for
+        re-detection, where the context the filter learned (a static
+        background) would otherwise fire at the place the target left.
+        """
+        h = np.fft.irfft2(self.numerator_ / (self.denominator_ + self.lam)[:, :, None],
+                          s=self.shape_, axes=(0, 1)).astype(np.float32)
+        if target_only:
+            hc, wc = self.shape_
+            half = np.ceil(self.box_cells_ / 2.0).astype(int)
+            mask = np.zeros((hc, wc), np.float32)
+            mask[max(hc // 2 - half[1], 0):hc // 2 + half[1] + 1, max(wc // 2 - half[0], 0):wc // 2 + half[0] + 1] = 1
+            h *= mask[:, :, None]
+        return h
+
+    def search(self, image: np.ndarray, centre, region_size, box_size) -> CorrelationResult:
+        """Re-detection over a large region: the filter slid over every cell of ``region_size`` around ``centre``.
+
+        The region (any size, e.g. the whole frame) is resampled at the
+        filter's resolution for ``box_size`` and its cell features
+        (no cosine window) are correlated with :meth:`spatial_filter`
+        (``cv2.filter2D``, zero outside the image), so the cost grows with the
+        region's area in box units, not with the frame.  The response is not
+        circular; its PSR is measured in the same way.
+        """
+        import cv2
+
+        step = self.cell_step(box_size)
+        region = np.maximum(np.asarray(region_size, float), self.window_size(box_size))
+        cells = np.maximum(np.round(region / step).astype(int), 8)
+        patch = cut_window(image, centre, cells * step, (int(cells[0]) * self.cell, int(cells[1]) * self.cell))
+        z = cell_features(patch, cell=self.cell, colour=self.colour)
+        h = self.spatial_filter()
+        anchor = (self.shape_[1] // 2, self.shape_[0] // 2)
+        response = np.zeros(z.shape[:2], np.float32)
+        for l in range(z.shape[2]):   # correlation: y(p) = sum_l sum_t h_l(t) z_l(p + t - anchor)
+            response += cv2.filter2D(z[:, :, l], -1, h[:, :, l], anchor=anchor, borderType=cv2.BORDER_CONSTANT)
+        r, c = np.unravel_index(int(np.argmax(response)), response.shape)
+        peak = float(response[r, c])
+        psr = peak_to_sidelobe(response, (int(r), int(c)), self.exclude_cells)
+        quality = float(np.clip((psr - self.psr_low) / (self.psr_high - self.psr_low), 0.0, 1.0))
+        found = np.asarray(centre, float) + (np.array([c, r], float) - cells // 2) * step
+        return CorrelationResult(window_centre=np.asarray(centre, float), centre=found, size=np.asarray(box_size, float), response=response, step=step,
+                                 scale=1.0, peak=peak, psr=psr, quality=quality)
+
+
+def fuse_peak(result: CorrelationResult, anchor: np.ndarray, weight: float, unit: float) -> np.ndarray:
+    """Where the response, less ``weight`` times the squared distance from ``anchor`` in ``unit``s, peaks.
+
+    The fusion of :class:`~vidtrack.measure.mil.MILMeasurer`: the
+    correlation response (divided by its peak) is traded against the
+    distance from the superpixel inliers' centre; the maximum is refined to
+    sub-cell by parabolas.  Returns the frame position ``(x, y)``.
+    """
+    h, w = result.response.shape
+    xs = result.window_centre[0] + (np.arange(w) - w // 2) * result.step
+    ys = result.window_centre[1] + (np.arange(h) - h // 2) * result.step
+    d2 = ((ys[:, None] - anchor[1]) ** 2 + (xs[None, :] - anchor[0]) ** 2) / max(unit, 1e-6) ** 2
+    objective = result.response / max(result.peak, 1e-9) - weight * d2
+    r, c = np.unravel_index(int(np.argmax(objective)), objective.shape)
+
+    def offset(a: float, b: float, cc: float) -> float:
+        den = a - 2.0 * b + cc
+        return float(np.clip(0.5 * (a - cc) / den, -0.5, 0.5)) if den < 0 else 0.0
+
+    dr = offset(objective[r - 1, c], objective[r, c], objective[r + 1, c]) if 0 < r < h - 1 else 0.0
+    dc = offset(objective[r, c - 1], objective[r, c], objective[r, c + 1]) if 0 < c < w - 1 else 0.0
+    return np.array([xs[c] + dc * result.step, ys[r] + dr * result.step])
+
+
+def result_score_map(result: CorrelationResult) -> ScoreMap:
+    """The response as a :class:`~vidtrack.types.ScoreMap` over box positions (scores divided by the peak)."""
+    h, w = result.response.shape
+    bw, bh = result.size
+    origin = (float(result.window_centre[0] - (w // 2) * result.step - bw / 2.0),
+              float(result.window_centre[1] - (h // 2) * result.step - bh / 2.0))
+    scores = (result.response / max(result.peak, 1e-9)).astype(np.float32)
+    region = Box(origin[0], origin[1], (w - 1) * result.step + bw, (h - 1) * result.step + bh)
+    return ScoreMap(scores=scores, origin=origin, step=result.step, box_size=(float(bw), float(bh)),
+                    quality=result.quality, search_region=region,
+                    stages={"score_map": scores})
+
+
+@dataclass
+class CorrelationScoreMapMeasurer:
+    """The correlation-filter detector as a :class:`~vidtrack.types.ScoreMap` measurer (``--detector cf``).
+
+    Each frame the filter searches the window around the prior's centre at
+    the detector's current box size, and the scale filter estimates the
+    size change at the peak; the map is the response (divided by its peak,
+    so the best box scores 1) over the box positions of that window, its
+    ``box_size`` the new size and its ``quality`` the PSR quality.  While the prior is ``lost`` the filter
+    is first slid over a region of ``lost_margin`` box sizes on each side of it
+    (:meth:`CorrelationFilter.search`, target cells only) and the window is
+    searched around that region's best peak.  The filter learns only from
+    frames whose posterior is ``tracking`` and whose quality reached
+    ``learn_above``.
+
+    Parameters
+    ----------
+    padding, window_cells, learning_rate, scale_factors, psr_low, psr_high
+        Of the :class:`CorrelationFilter` (which also runs the :class:`ScaleFilter`).
+    learn_above
+        Minimum quality of the frame's detection for the filter to learn.
+    lost_margin
+        While lost, the re-detection region reaches this many box sizes on each side of the prior.
+    size_limits
+        The box size stays within these multiples of the initial size.
+    """
+
+    padding: float = 2.5
+    window_cells: int = 32
+    learning_rate: float = 0.02
+    scale_factors: tuple[float, ...] = (1.0,)
+    psr_low: float = 3.0
+    psr_high: float = 10.0
+    learn_above: float = 0.2
+    lost_margin: float = 1.5
+    size_limits: tuple[float, float] = (0.2, 5.0)
+
+    def initialize(self, frame: Frame, box: Box) -> None:
+        self.filter_ = CorrelationFilter(padding=self.padding, window_cells=self.window_cells,
+                                         learning_rate=self.learning_rate, scale_factors=self.scale_factors,
+                                         psr_low=self.psr_low, psr_high=self.psr_high)
+        self.filter_.initialize(frame.image, box)
+        self.init_size_ = box.size.copy()
+        self.last_quality_ = 1.0
+        self.size_ = box.size.copy()
+
+    def _clamp_size(self, size: np.ndarray) -> np.ndarray:
+        lo, hi = self.size_limits
+        return np.clip(size, lo * self.init_size_, hi * self.init_size_)
+
+    def measure(self, frame: Frame, prior: Estimate) -> ScoreMap | None:
+        centre = prior.box.center
+        size = self._clamp_size(self.size_)
+        if prior.status == "lost" and self.lost_margin > 0:   # re-detection over a wider region (target only)
+            centre = self.filter_.search(frame.image, centre, size * (1.0 + 2.0 * self.lost_margin), size).centre
+        result = self.filter_.detect(frame.image, centre, size)
+        result = replace(result, size=self._clamp_size(result.size))
+        self.last_quality_ = result.quality
+        self.last_psr_ = result.psr
+        self.last_size_ = result.size
+        return result_score_map(result)
+
+    def learn(self, frame: Frame, posterior: Estimate) -> None:
+        if posterior.status != "tracking" or self.last_quality_ < self.learn_above:
+            return
+        self.size_ = self._clamp_size(self.last_size_)
+        self.filter_.update(frame.image, Box.from_center(*posterior.box.center, *self.size_))
