@@ -16,7 +16,8 @@ from vidtrack.eval.synthetic import write_sequence
 from vidtrack.tracker import Recipe, registry
 from vidtrack.types import TrackState
 
-METRICS = {"auc", "precision20", "pascal", "center_error", "fps"}
+METRICS = {"auc", "precision20", "pascal", "center_error", "fps", "false_lost", "missed_loss", "confidence_auc",
+           "lost_rate"}
 
 
 class StaticTracker:
