@@ -338,7 +338,7 @@ def render_report(summary: Mapping[str, Mapping[str, Mapping[str, Any]]], sequen
     parts += ["<h2>Can the confidence be trusted?</h2>", _confidence_table(summary),
               '<p class="note">Frames of all sequences pooled, init frame excluded. The OpenCV ok flag rows '
               "score OpenCV's own update() flag as the status (it stays True after the target has gone).</p>"]
-    if by_attribute:
+    if by_attribute and any(by_attribute.values()):
         parts += ["<h2>Success AUC by attribute</h2>", _attribute_table(by_attribute)]
     parts += ["<h2>Per sequence</h2>", per_sequence]
 

@@ -132,8 +132,9 @@ def write_summary(out: str | Path, summary: dict[str, dict[str, dict[str, Any]]]
     json_path, md_path = out / "summary.json", out / "summary.md"
     document = dict(summary)
     extra = "\n" + format_confidence_table(summary) + "\n\n" + CONFIDENCE_NOTE + "\n"
-    if by_attribute:
+    if by_attribute is not None:
         document["by_attribute"] = by_attribute
+    if by_attribute and any(by_attribute.values()):
         extra += ("\n" + format_attribute_table(by_attribute, summary) + "\n\nMean success AUC over the "
                   "sequences carrying each OTB attribute (their number in brackets).\n")
     try:
