@@ -116,6 +116,19 @@ def test_eval_writes_attributes_confidence_and_a_report_that_renders(tmp_path, c
     assert loaded is not None, "the page's load script did not run"
     assert loaded.group(1) == loaded.group(2) == str(len(sources))  # every plot and thumbnail decoded
 
+    # the inline sorting script: a click on "AUC" of the per-sequence table orders its rows by AUC, highest first
+    click = ("<script>window.addEventListener('load', function () { var t = document.querySelectorAll("
+             "'table.sortable')[3]; t.tHead.rows[0].cells[2].click(); document.body.setAttribute('data-order', "
+             "Array.prototype.map.call(t.tBodies[0].rows, function (r) { return r.cells[0].textContent + '/' + "
+             "r.cells[1].textContent; }).join(',')); });</script></body>")
+    clicked = tmp_path / "clicked.html"
+    clicked.write_text(page.replace("</body>", click))
+    dom = subprocess.run([browser, *flags, "--dump-dom", clicked.as_uri()], check=True, capture_output=True,
+                         text=True, timeout=120).stdout
+    order = re.search(r'data-order="([^"]*)"', dom).group(1).split(",")
+    aucs = [summary[key.split("/")[0]][key.split("/")[1]]["auc"] for key in order]
+    assert len(order) == 4 and aucs == sorted(aucs, reverse=True)
+
 
 def test_attribute_option_and_its_errors(tmp_path, capsys):
     data = _dataset(tmp_path)
