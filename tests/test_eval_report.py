@@ -165,7 +165,9 @@ def test_compare_two_result_folders(tmp_path, capsys):
     assert by_key[("mil", "mean")]["delta"] == pytest.approx((-0.10 + 0.02) / 2)  # Suv is only in B
     assert by_key[("mil", "Suv")]["delta"] is None and by_key[("kcf", "mean")]["sequences"] == 0
     table = format_comparison(rows)
-    assert re.search(r"\| mil +\| Girl .*-0\.100 \| worse", table) and "only in B" in table
+    assert re.search(r"\| mil +\| Girl .*-0\.100 \| worse", table) and "| Suv" not in table
+    assert "(1 tracker/sequence pair only in A; 2 tracker/sequence pairs only in B: not compared)" in table
+    assert "| kcf" not in table and "| csrt" not in table  # nothing in common: no row
     assert "by_attribute" not in table
 
     assert vidtrack_main(["eval", "--compare", str(a), str(b)]) == 0

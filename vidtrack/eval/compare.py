@@ -49,11 +49,12 @@ def _auc(row: dict[str, Any] | None) -> float | None:
 
 
 def compare(a: dict[str, dict[str, dict[str, Any]]], b: dict[str, dict[str, dict[str, Any]]]) -> list[dict]:
-    """Rows ``{filter, sequence, auc_a, auc_b, delta}``, per tracker its sequences then its ``mean``.
+    """Rows ``{filter, sequence, auc_a, auc_b, delta, only}``, per tracker its sequences then its ``mean``.
 
     Trackers and sequences in the order of ``a`` then those only in ``b``; a
-    side that lacks the pair (or failed on it) has ``None`` and so has
-    ``delta``.  The mean is over the sequences both sides scored.
+    side that lacks the pair (``only`` is then ``"A"`` or ``"B"``) or failed
+    on it has ``None`` and so has ``delta``.  The mean is over the sequences
+    both sides scored.
     """
     out = []
     for name in list(a) + [n for n in b if n not in a]:
@@ -64,7 +65,9 @@ def compare(a: dict[str, dict[str, dict[str, Any]]], b: dict[str, dict[str, dict
             delta = None if auc_a is None or auc_b is None else auc_b - auc_a
             if delta is not None:
                 both.append((auc_a, auc_b))
-            out.append({"filter": name, "sequence": sequence, "auc_a": auc_a, "auc_b": auc_b, "delta": delta})
+            only = None if (sequence in rows_a) == (sequence in rows_b) else ("A" if sequence in rows_a else "B")
+            out.append({"filter": name, "sequence": sequence, "auc_a": auc_a, "auc_b": auc_b, "delta": delta,
+                        "only": only})
         if both:
             mean_a, mean_b = (sum(p[i] for p in both) / len(both) for i in (0, 1))
             out.append({"filter": name, "sequence": "mean", "auc_a": mean_a, "auc_b": mean_b,
@@ -76,20 +79,33 @@ def compare(a: dict[str, dict[str, dict[str, Any]]], b: dict[str, dict[str, dict
 
 
 def format_comparison(rows: list[dict], label_a: str = "A", label_b: str = "B") -> str:
-    """A Markdown table of :func:`compare`'s rows; ``|delta| >= FLAG`` marked ``worse`` / ``better``."""
+    """A Markdown table of :func:`compare`'s rows; ``|delta| >= FLAG`` marked ``worse`` / ``better``.
+
+    Pairs held by one side only are not tabled but counted in a last line.
+    """
     from .report import _markdown
 
     def cell(value, fmt):
         return "-" if value is None else fmt.format(value)
 
     table = []
+    only: dict[str, int] = {}
     for row in rows:
+        if row.get("only"):
+            only[row["only"]] = only.get(row["only"], 0) + 1
+            continue
+        if row["sequence"] == "mean" and row["sequences"] == 0 and not any(
+                r["filter"] == row["filter"] and r["sequence"] != "mean" and not r.get("only") for r in rows):
+            continue  # a tracker only one side ran
         delta = row["delta"]
         mark = "" if delta is None or abs(delta) < FLAG else ("worse" if delta < 0 else "better")
-        if delta is None and (row["auc_a"] is None) != (row["auc_b"] is None):
-            mark = f"only in {label_a if row['auc_b'] is None else label_b}"
+        if delta is None and row["sequence"] != "mean":
+            mark = f"failed in {label_a if row['auc_a'] is None else label_b}"
         sequence = row["sequence"] if row["sequence"] != "mean" else f"**mean** ({row['sequences']} seq.)"
         table.append([row["filter"], sequence, cell(row["auc_a"], "{:.3f}"), cell(row["auc_b"], "{:.3f}"),
                       cell(delta, "{:+.3f}"), mark])
     header = ["filter", "sequence", f"AUC {label_a}", f"AUC {label_b}", "change", ""]
-    return _markdown(header, table, [False, False, True, True, True, False])
+    text = _markdown(header, table, [False, False, True, True, True, False])
+    label = {"A": label_a, "B": label_b}
+    notes = [f"{n} tracker/sequence pair{'s' * (n != 1)} only in {label[side]}" for side, n in sorted(only.items())]
+    return text + ("\n(" + "; ".join(notes) + ": not compared)" if notes else "")
