@@ -55,5 +55,15 @@ test: install-dev vot-env
 sample: install
 	$(BIN)/python scripts/make_sample.py --out data
 
+# headless Chromium (Debian's chromium) renders OUT/report.html in tests/test_eval_report.py: `make test`
+# installs it once when missing and we are root, else that test skips its rendering check
+.PHONY: browser
+test: browser
+browser:
+	@command -v chromium >/dev/null 2>&1 || command -v chromium-browser >/dev/null 2>&1 || \
+	  if [ "$$(id -u)" = 0 ] && command -v apt-get >/dev/null 2>&1; then \
+	    apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq chromium >/dev/null; \
+	  else echo "make: no chromium and not root: the report-rendering test will skip its browser check"; fi
+
 clean:
 	rm -rf $(VENV) $(VOT_VENV) $(OUT) .pytest_cache

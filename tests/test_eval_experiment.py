@@ -16,7 +16,8 @@ from vidtrack.eval.synthetic import write_sequence
 from vidtrack.tracker import Recipe, registry
 from vidtrack.types import TrackState
 
-METRICS = {"auc", "precision20", "pascal", "center_error", "fps"}
+METRICS = {"auc", "precision20", "pascal", "center_error", "fps", "false_lost", "missed_loss", "confidence_auc",
+           "lost_rate"}
 
 
 class StaticTracker:
@@ -97,7 +98,7 @@ def test_cli_end_to_end_resume_force_and_honest_fps(dataset, tmp_path, capsys):
         for row in summary[name].values():
             assert set(row) == METRICS and 0 <= row["auc"] <= 1 and row["fps"] > 0
     assert summary["kalman-cv"]["Otb"]["auc"] > 0.5  # it really tracks the synthetic target
-    assert (out / "summary.md").read_text().count("| ms ") == 3
+    assert (out / "summary.md").read_text().count("| ms ") == 3 + 1  # scores: 2 sequences + mean; confidence: 1
     for png in ("success.png", "precision.png", "plots/Mil_success.png"):
         assert (out / png).read_bytes()[:4] == b"\x89PNG"
     record = json.loads((out / "kalman-cv" / "Otb.json").read_text())

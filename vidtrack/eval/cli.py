@@ -1,4 +1,7 @@
-"""``vidtrack eval DATASET_DIR --filter a,b,c``: run trackers on benchmark sequences and score them."""
+"""``vidtrack eval DATASET_DIR --filter a,b,c``: run trackers on benchmark sequences and score them.
+
+``vidtrack eval --compare DIR_A DIR_B`` tables the change in AUC between two such evaluations.
+"""
 
 from __future__ import annotations
 
@@ -10,8 +13,12 @@ from ..errors import UsageError
 EPILOG = """\
 Writes OUT/<filter>/<Sequence>.txt (one x,y,w,h line per ground-truth line, in that sequence's own
 convention: OTB folders 1-based, MIL data 0-based; rows not tracked are 0,0,0,0) with a .json run
-record beside it, OUT/summary.json, OUT/summary.md, OUT/success.png and OUT/precision.png.
+record and a .confidence.csv (per-frame confidence and status) beside it, OUT/summary.json,
+OUT/summary.md, OUT/success.png, OUT/precision.png, OUT/attributes.png (success AUC per OTB
+attribute, from DATASET_DIR/attr_list.txt or --attributes) and OUT/report.html (everything in one
+self-contained page, with thumbnails of the frames where the best tracker fails).
 Existing results of a matching run are reused unless --force.
+--compare DIR_A DIR_B prints per tracker and sequence AUC(B) - AUC(A) from the two summary.json.
 """
 
 
@@ -21,10 +28,14 @@ def build_parser():
     parser = OneLineParser(prog="vidtrack eval", epilog=EPILOG,
                            description="Evaluate trackers on benchmark sequences (OTB or MIL layout): "
                                        "OTB success AUC, precision@20, PASCAL score, centre error, fps.")
-    parser.add_argument("dataset", metavar="DATASET_DIR",
+    parser.add_argument("dataset", metavar="DATASET_DIR", nargs="?",
                         help="folder of sequence folders (img/ + groundtruth_rect.txt, or MIL imgs/ + "
                              "<name>_gt.txt), or one sequence folder")
-    parser.add_argument("--filter", required=True, metavar="A,B,C", help="comma-separated tracker names")
+    parser.add_argument("--filter", metavar="A,B,C", help="comma-separated tracker names (required)")
+    parser.add_argument("--compare", nargs=2, metavar=("DIR_A", "DIR_B"),
+                        help="instead of evaluating: print the change in AUC from DIR_A to DIR_B (two --out folders)")
+    parser.add_argument("--attributes", metavar="FILE",
+                        help="OTB attribute file (name<TAB>TAG, TAG, ...; default: DATASET_DIR/attr_list.txt if any)")
     parser.add_argument("--sequences", metavar="S1,S2", help="only these sequences (default: all)")
     parser.add_argument("--out", default="results", metavar="DIR", help="output folder (default: results)")
     parser.add_argument("--jobs", type=int, default=1, metavar="N",
@@ -59,10 +70,18 @@ def main(argv: list[str]) -> int:
     from ..tracker import registry
     from .datasets import load_dataset
     from .experiment import run_evaluation
-    from .plots import write_plots
-    from .report import format_table, write_summary
+    from .attributes import by_attribute
+    from .html_report import write_report
+    from .plots import attribute_plot, write_plots
+    from .report import format_attribute_table, format_confidence_table, format_table, write_summary
 
     args = build_parser().parse_args(argv)
+    if args.compare:
+        if args.dataset or args.filter:
+            raise UsageError("--compare DIR_A DIR_B takes no DATASET_DIR or --filter")
+        return _compare(*args.compare)
+    if not args.dataset or not args.filter:
+        raise UsageError("DATASET_DIR and --filter are required (or --compare DIR_A DIR_B)")
     filters = _names(args.filter, "--filter")
     recipes = registry()
     unknown = [name for name in filters if name not in recipes]
@@ -83,6 +102,7 @@ def main(argv: list[str]) -> int:
             raise UsageError(f"--rerun needs the rerun-sdk package ({exc.name} is missing)") from None
     names = _names(args.sequences, "--sequences") if args.sequences else None
     sequences = load_dataset(args.dataset, names)
+    attributes = _attributes(args.attributes, args.dataset)
 
     def report(output) -> None:
         if args.quiet:
@@ -98,14 +118,43 @@ def main(argv: list[str]) -> int:
                                 force=args.force, workers=args.jobs, scheduler=args.scheduler,
                                 isolate=not args.in_process,
                                 rerun_dir=args.rerun, quiet=args.quiet, on_output=report)
-    json_path, md_path = write_summary(args.out, evaluation.summary)
+    per_attribute = by_attribute(evaluation.summary, attributes) if attributes else None
+    json_path, md_path = write_summary(args.out, evaluation.summary, per_attribute)
     written = [json_path, md_path]
     if not args.no_plots:
         written += write_plots(args.out, evaluation.curves, filters, [s.name for s in sequences])[:2]
+        if per_attribute and any(per_attribute.values()):
+            written.append(attribute_plot(Path(args.out) / "attributes.png", per_attribute))
+    plots = [] if args.no_plots else [Path(args.out) / f for f in ("success.png", "precision.png", "attributes.png")]
+    written.append(write_report(args.out, evaluation.summary, sequences, by_attribute=per_attribute, plots=plots))
     print(format_table(evaluation.summary))
+    print("\n" + format_confidence_table(evaluation.summary))
+    if per_attribute and any(per_attribute.values()):
+        print("\n" + format_attribute_table(per_attribute, evaluation.summary))
     if not args.quiet:
         counts = {s: list(evaluation.status.values()).count(s) for s in ("done", "reused", "failed")}
         print(f"vidtrack eval: {counts['done']} run, {counts['reused']} reused, {counts['failed']} failed; "
               f"wrote {', '.join(str(p) for p in written)} and {Path(args.out)}/<filter>/<Sequence>.txt",
               file=sys.stderr)
     return 1 if "failed" in evaluation.status.values() else 0
+
+
+def _attributes(option: str | None, dataset: str) -> dict[str, tuple[str, ...]] | None:
+    """The attribute table from ``--attributes FILE``, else the dataset's ``attr_list.txt``, else None."""
+    from .attributes import find_attribute_file, read_attributes
+
+    if option is not None:
+        if not Path(option).is_file():
+            raise UsageError(f"--attributes: no such file: {option}")
+        return read_attributes(option)
+    found = find_attribute_file(dataset)
+    return read_attributes(found) if found is not None else None
+
+
+def _compare(dir_a: str, dir_b: str) -> int:
+    from .compare import compare, format_comparison, read_summary
+
+    a, b = read_summary(dir_a), read_summary(dir_b)
+    print(f"AUC change from A = {dir_a} to B = {dir_b} (change = B - A; |change| >= 0.05 marked)")
+    print(format_comparison(compare(a, b)))
+    return 0

@@ -12,6 +12,8 @@ calling process writes them, atomically, as::
     OUT/<filter>/<Sequence>.json    the run record (fps of *that* run, tracked rows,
                                     seed, max_frames), so a resumed evaluation
                                     reports honest fps and reuses only matching runs
+    OUT/<filter>/<Sequence>.confidence.csv  the tracker's per-frame confidence and
+                                    status (:mod:`vidtrack.eval.confidence`)
 
 Scoring reads only these files (DESIGN.md: evaluation goes through files).
 Every job is seeded and, by default, runs in a fresh interpreter
@@ -40,8 +42,9 @@ from ..errors import DatasetError, OutputError, UsageError
 from ..types import Box, Frame, TrackState
 from .datasets import BenchmarkSequence, read_boxes
 from ..sinks.files import format_box
+from . import confidence as conf
 from .metrics import PRECISION_THRESHOLDS, SUCCESS_THRESHOLDS, METRIC_NAMES, frame_scores, summarize, \
-    precision_curve, success_curve
+    iou, precision_curve, success_curve
 
 RECORD_VERSION = 1
 NOT_TRACKED = "0,0,0,0"
@@ -80,16 +83,19 @@ class JobOutput:
     lines: list[str] | None = None
     record: dict[str, Any] = field(default_factory=dict)
     error: str | None = None
+    confidence: str | None = None  # the per-frame confidence file's text
 
 
 class _Collector:
-    """A sink keeping every state's box (0-based pixels)."""
+    """A sink keeping every state's box (0-based pixels), confidence, status and measured flag."""
 
     def __init__(self) -> None:
         self.boxes: list[Box] = []
+        self.states: list[tuple[float, str, bool]] = []
 
     def write(self, frame: Frame, state: TrackState) -> None:
         self.boxes.append(state.box)
+        self.states.append((state.confidence, state.status, state.measured is not None))
 
     def close(self) -> None:
         pass
@@ -154,7 +160,8 @@ def track_job(job: Job) -> JobOutput:
         "fps": result.fps,
         "rerun": job.rerun_path,
     }
-    return JobOutput(job.filter_name, sequence.name, "done", lines, record)
+    confidence = conf.format_confidence((row, *s) for row, s in enumerate(collector.states, start=start))
+    return JobOutput(job.filter_name, sequence.name, "done", lines, record, confidence=confidence)
 
 
 def run_job(job: Job) -> JobOutput:
@@ -192,13 +199,15 @@ def write_output(out: Path, output: JobOutput) -> None:
     """Write a finished job's result file, then its record (the record marks it complete)."""
     txt, record = result_paths(out, output.filter_name, output.sequence_name)
     _write_atomic(txt, "\n".join(output.lines) + "\n")
+    if output.confidence is not None:
+        _write_atomic(conf.confidence_path(txt), output.confidence)
     _write_atomic(record, json.dumps(output.record, indent=1) + "\n")
 
 
 def reusable(out: Path, job: Job) -> dict | None:
     """The record of an earlier run of ``job`` whose result file can be reused, else None."""
     txt, record_path = result_paths(out, *job.key)
-    if not (txt.is_file() and record_path.is_file()):
+    if not (txt.is_file() and record_path.is_file() and conf.confidence_path(txt).is_file()):
         return None
     try:
         record = json.loads(record_path.read_text(encoding="utf-8"))
@@ -293,6 +302,7 @@ class SequenceScore:
     metrics: dict[str, Any]
     success: np.ndarray | None = None
     precision: np.ndarray | None = None
+    frames: tuple[np.ndarray, ...] | None = None  # (ious, confidence, status, measured) for the confidence metrics
 
 
 def score_result(sequence: BenchmarkSequence, result_path: Path, record: dict | None) -> SequenceScore:
@@ -312,7 +322,16 @@ def score_result(sequence: BenchmarkSequence, result_path: Path, record: dict | 
     fps = float(record["fps"]) if record and record.get("fps") is not None else float("nan")
     row = {name: metrics[name] for name in METRIC_NAMES}
     row["fps"] = fps
-    return SequenceScore(row, success_curve(ious, SUCCESS_THRESHOLDS), precision_curve(errors, PRECISION_THRESHOLDS))
+    frames = None
+    row.update(dict.fromkeys(conf.CONFIDENCE_KEYS, float("nan")))
+    if conf.confidence_path(result_path).is_file():
+        keep = sequence.annotated & mask
+        keep[start] = False  # the init box is given, not tracked
+        confidence, status, measured = conf.read_confidence(conf.confidence_path(result_path), len(sequence))
+        frames = (iou(results[keep], sequence.ground_truth[keep]), confidence[keep], status[keep], measured[keep])
+        row.update(conf.confidence_metrics(*frames[:3]))
+    return SequenceScore(row, success_curve(ious, SUCCESS_THRESHOLDS), precision_curve(errors, PRECISION_THRESHOLDS),
+                         frames)
 
 
 def _failed_row(error: str) -> dict[str, Any]:
@@ -408,6 +427,7 @@ def run_evaluation(sequences: list[BenchmarkSequence], filters: list[str], out: 
     curves: dict[tuple[str, str], tuple[np.ndarray, np.ndarray]] = {}
     for name in filters:
         rows: dict[str, dict[str, Any]] = {}
+        pooled = []
         for sequence in sequences:
             key = (name, sequence.name)
             if key in errors:
@@ -416,6 +436,9 @@ def run_evaluation(sequences: list[BenchmarkSequence], filters: list[str], out: 
             scored = score_result(sequence, result_paths(out, *key)[0], records[key])
             rows[sequence.name] = scored.metrics
             curves[key] = (scored.success, scored.precision)
+            if scored.frames is not None:
+                pooled.append(scored.frames)
         rows["mean"] = mean_row(rows)
+        rows["mean"].update(conf.pooled_metrics(pooled, ok_flag=name.startswith("opencv-")))
         summary[name] = rows
     return Evaluation(summary, curves, status)

@@ -26,8 +26,24 @@ def mean_curves(curves: Mapping[tuple[str, str], tuple[np.ndarray, np.ndarray]],
     return means
 
 
+def palette(names) -> dict[str, tuple[int, int, int]]:
+    """A distinct colour per tracker, ``{name: (r, g, b)}`` 0-255 (matplotlib's tab10, or tab20 past 10).
+
+    The plots and the HTML report colour a tracker the same way.
+    """
+    import matplotlib
+
+    names = list(names)
+    cmap = matplotlib.colormaps["tab10" if len(names) <= 10 else "tab20"]
+    return {name: tuple(int(round(255 * c)) for c in cmap(i % cmap.N)[:3]) for i, name in enumerate(names)}
+
+
+def _mpl_colour(colours, name):
+    return None if not colours or name not in colours else tuple(c / 255 for c in colours[name])
+
+
 def _plot(path: Path, x: np.ndarray, series: dict[str, np.ndarray], *, title: str, xlabel: str,
-          ylabel: str, label) -> Path:
+          ylabel: str, label, colours=None) -> Path:
     import matplotlib
 
     matplotlib.use("Agg")
@@ -37,7 +53,7 @@ def _plot(path: Path, x: np.ndarray, series: dict[str, np.ndarray], *, title: st
     try:
         ranked = sorted(series.items(), key=lambda item: -np.nan_to_num(label(item[1])))
         for name, y in ranked:
-            ax.plot(x, y, linewidth=2, label=f"{name} [{label(y):.3f}]")
+            ax.plot(x, y, linewidth=2, label=f"{name} [{label(y):.3f}]", color=_mpl_colour(colours, name))
         ax.set(title=title, xlabel=xlabel, ylabel=ylabel, xlim=(x[0], x[-1]), ylim=(0, 1.02))
         ax.grid(True, alpha=0.3)
         if series:
@@ -52,17 +68,23 @@ def _plot(path: Path, x: np.ndarray, series: dict[str, np.ndarray], *, title: st
     return path
 
 
-def success_plot(path: str | Path, curves: Mapping[str, np.ndarray], *, title: str = "Success plot") -> Path:
-    """Success rate against the IoU threshold, one curve per tracker, AUC in the legend."""
+def success_plot(path: str | Path, curves: Mapping[str, np.ndarray], *, title: str = "Success plot",
+                 colours=None) -> Path:
+    """Success rate against the IoU threshold, one curve per tracker, AUC in the legend.
+
+    ``colours`` (optional) maps a tracker to its ``(r, g, b)`` 0-255 (see :func:`palette`).
+    """
     return _plot(Path(path), SUCCESS_THRESHOLDS, dict(curves), title=title, xlabel="Overlap threshold",
-                 ylabel="Success rate", label=lambda y: float(np.mean(y)))
+                 ylabel="Success rate", label=lambda y: float(np.mean(y)), colours=colours)
 
 
-def precision_plot(path: str | Path, curves: Mapping[str, np.ndarray], *, title: str = "Precision plot") -> Path:
+def precision_plot(path: str | Path, curves: Mapping[str, np.ndarray], *, title: str = "Precision plot",
+                   colours=None) -> Path:
     """Precision against the centre-error threshold, one curve per tracker, precision@20 in the legend."""
     at20 = int(np.flatnonzero(PRECISION_THRESHOLDS == 20)[0])
     return _plot(Path(path), PRECISION_THRESHOLDS, dict(curves), title=title,
-                 xlabel="Location error threshold (px)", ylabel="Precision", label=lambda y: float(y[at20]))
+                 xlabel="Location error threshold (px)", ylabel="Precision", label=lambda y: float(y[at20]),
+                 colours=colours)
 
 
 def write_plots(out: str | Path, curves: Mapping[tuple[str, str], tuple[np.ndarray, np.ndarray]],
@@ -73,15 +95,60 @@ def write_plots(out: str | Path, curves: Mapping[tuple[str, str], tuple[np.ndarr
     written = []
     means = mean_curves(curves, filters)
     n = len(sequences)
+    colours = palette(filters)
     written.append(success_plot(out / "success.png", {f: c[0] for f, c in means.items()},
-                                title=f"Success plot ({n} sequence{'s' * (n != 1)})"))
+                                title=f"Success plot ({n} sequence{'s' * (n != 1)})", colours=colours))
     written.append(precision_plot(out / "precision.png", {f: c[1] for f, c in means.items()},
-                                  title=f"Precision plot ({n} sequence{'s' * (n != 1)})"))
+                                  title=f"Precision plot ({n} sequence{'s' * (n != 1)})", colours=colours))
     if n > 1:
         for sequence in sequences:
             mine = {f: curves[(f, sequence)] for f in filters if (f, sequence) in curves}
             written.append(success_plot(out / "plots" / f"{sequence}_success.png",
-                                        {f: c[0] for f, c in mine.items()}, title=f"Success plot: {sequence}"))
+                                        {f: c[0] for f, c in mine.items()}, title=f"Success plot: {sequence}",
+                                        colours=colours))
             written.append(precision_plot(out / "plots" / f"{sequence}_precision.png",
-                                          {f: c[1] for f, c in mine.items()}, title=f"Precision plot: {sequence}"))
+                                          {f: c[1] for f, c in mine.items()}, title=f"Precision plot: {sequence}",
+                                          colours=colours))
     return written
+
+
+def attribute_plot(path: str | Path, by_attribute: Mapping[str, Mapping[str, Mapping]], *,
+                   title: str = "Success AUC by attribute", colours=None) -> Path:
+    """Grouped bars: per OTB attribute, each tracker's mean success AUC over the sequences carrying it.
+
+    ``by_attribute`` is :func:`vidtrack.eval.attributes.by_attribute`'s
+    output; the tick labels give each tag's sequence count.
+    """
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from .attributes import tag_order
+
+    path = Path(path)
+    tags = tag_order({t for per in by_attribute.values() for t in per})
+    names = list(by_attribute)
+    fig, ax = plt.subplots(figsize=(max(5.5, 0.75 * len(tags) * max(1, len(names)) ** 0.5 + 2), 4.2), dpi=110)
+    try:
+        width = 0.8 / max(1, len(names))
+        x = np.arange(len(tags))
+        for i, name in enumerate(names):
+            heights = [by_attribute[name].get(t, {}).get("auc") for t in tags]
+            ax.bar(x - 0.4 + width * (i + 0.5), [np.nan if h is None else h for h in heights], width, label=name,
+                   color=_mpl_colour(colours or palette(names), name))
+        counts = [max(per[t]["sequences"] for per in by_attribute.values() if t in per) for t in tags]
+        ax.set_xticks(x, [f"{t}\n({n})" for t, n in zip(tags, counts)])
+        ax.set(title=title, ylabel="Mean success AUC", ylim=(0, 1.15), xlim=(-0.6, len(tags) - 0.4))
+        ax.set_yticks(np.linspace(0, 1, 6))
+        ax.grid(True, axis="y", alpha=0.3)
+        if names:
+            ax.legend(loc="upper center", fontsize=7, ncol=min(5, len(names)), frameon=False)
+        fig.tight_layout()
+        path.parent.mkdir(parents=True, exist_ok=True)
+        fig.savefig(path)
+    except OSError as exc:
+        raise OutputError(f"cannot write {path}: {exc.strerror or exc}") from None
+    finally:
+        plt.close(fig)
+    return path
