@@ -41,6 +41,7 @@ import numpy as np
 from ..filters.imm import IMMEstimator, uniform_transition_matrix
 from ..filters.kalman import MOTION_ORDERS, KalmanFilter, measured_axis_model
 from ..filters.svk import SupportVectorKalman
+from .paper import LEGEND, cell, claim, comparison, relative_difference
 
 DESCRIPTION = "Support Vector Kalman vs Kalman/IMM on 1-D motion (Salti & Di Stefano, Tables 1-3)"
 
@@ -220,21 +221,126 @@ def run(args: argparse.Namespace, progress) -> dict:
             per_run[r].append(summarise(kind, squared_errors(r, make_filters(args, kind, r), rng, truth)))
     for r in NOISE_LEVELS:
         result[f"R{r:g}"] = average_rows(per_run[r])
+    result["vs_paper"] = paper_comparisons(result)
+    result["claims"] = claims(result)
+    if getattr(args, "figure_dir", None):
+        from .figures import svk_trajectories
+
+        result["figures"] = svk_trajectories(args, kind, truth, make_filters, args.figure_dir)
     return result
 
 
+# ----------------------------------------------------------------- the paper's tables
+
+_T1_COLUMNS = ("whole", "CA", "CV", "Drift", "CA*", "CV*", "Drift*")  # Table 1's column order
+_T2_COLUMNS = ("whole", "CA", "Drift", "CV", "CA*", "Drift*", "CV*")  # Table 2's column order
+_T1 = {
+    "SVK": (22.41, 9.79, 38.02, 35.41, 8.91, 9.63, 1.67),
+    "IMM CA Q=1e-2R": (18.23, 4.62, 31.62, 3.61, 4.50, 4.22, 4.62),
+    "IMM CA Q=1e-4R": (60.21, 4.6, 105.43, 1.79, 4.48, 3.41, 1.40),
+    "IMM CV Q=1e-2R": (56.03, 76.91, 36.78, 44.82, 102.86, 4.37, 4.36),
+    "IMM CV Q=1e-4R": (76.05, 69.78, 87.37, 72.52, 89.34, 2.92, 3.62),
+    "Kalman CA Q=1e-2R": (76.62, 4.83, 51.3, 125.87, 4.59, 4.55, 6.06),
+    "Kalman CA Q=1e-4R": (357.45, 4.26, 242.19, 581.52, 3.72, 4.04, 7.87),
+    "Kalman CV Q=1e-2R": (227.38, 100.12, 155.13, 355.71, 104.84, 3.74, 5.31),
+    "Kalman CV Q=1e-4R": (1680.37, 1213.78, 1160.73, 2439.37, 1416.30, 49.82, 109.30),
+    "Kalman DR Q=1e-2R": (4498.51, 6015.22, 4536.67, 1793.30, 8056.45, 4757.75, 2.77),
+    "Kalman DR Q=1e-4R": (29698.38, 25771.38, 31583.97, 29279.53, 35763.45, 37809.42, 16743.08),
+}
+_T2 = {
+    "SVK": (43.36, 31.35, 9.33, 67.93, 28.29, 5.23, 30.56),
+    "IMM CA Q=1e-2R": (27.99, 15.62, 11.44, 45.04, 16.27, 13.37, 14.60),
+    "IMM CA Q=1e-4R": (111.47, 15.78, 5.66, 195.15, 16.57, 17.27, 10.47),
+    "IMM CV Q=1e-2R": (54.18, 61.06, 42.45, 53.82, 74.26, 13.79, 13.7),
+    "IMM CV Q=1e-4R": (116.60, 105.94, 28.87, 173.47, 105.36, 19.17, 83.12),
+    "Kalman CA Q=1e-2R": (79.65, 15.36, 130.17, 52.94, 14.52, 19.17, 14.3),
+    "Kalman CA Q=1e-4R": (357.69, 13.33, 581.70, 242.46, 11.75, 17.28, 10.94),
+    "Kalman CV Q=1e-2R": (228.08, 100.97, 356.26, 156.61, 106.77, 16.81, 11.71),
+    "Kalman CV Q=1e-4R": (1681.04, 1214.90, 2439.48, 1162.36, 1418.82, 106.66, 49.56),
+    "Kalman DR Q=1e-2R": (4500.00, 6016.82, 1793.01, 4539.23, 8059.09, 8.78, 4761.46),
+    "Kalman DR Q=1e-4R": (29699.11, 25772.48, 29279.76, 31584.70, 35764.94, 16742.06, 37810.78),
+}
+_T3 = {  # whole sequence, (R = 100, R = 1000)
+    "SVK": (20.61, 43.84), "IMM CA Q=1e-2R": (38.53, 44.71), "IMM CA Q=1e-4R": (48.88, 58.23),
+    "IMM CV Q=1e-2R": (289.90, 242.67), "IMM CV Q=1e-4R": (236.11, 215.54),
+    "Kalman CA Q=1e-2R": (61.92, 62.32), "Kalman CA Q=1e-4R": (308.32, 308.66),
+    "Kalman CV Q=1e-2R": (72.69, 72.95), "Kalman CV Q=1e-4R": (248.30, 248.46),
+    "Kalman DR Q=1e-2R": (143.63, 144.87), "Kalman DR Q=1e-4R": (434.83, 435.20),
+}
+#: The paper's values, typed from Salti & Di Stefano's Tables 1-3 (targets, not results):
+#: PAPER[experiment][noise key][filter][column].
+PAPER = {
+    "svk-linear": {"R100": {f: dict(zip(_T1_COLUMNS, v)) for f, v in _T1.items()},
+                   "R1000": {f: dict(zip(_T2_COLUMNS, v)) for f, v in _T2.items()}},
+    "svk-nonlinear": {"R100": {f: {"whole": v[0]} for f, v in _T3.items()},
+                      "R1000": {f: {"whole": v[1]} for f, v in _T3.items()}},
+}
+#: The issue's target for the IMM rows: within this relative difference of the paper on the whole sequence.
+IMM_TOLERANCE = 0.25
+
+
+def table_name(experiment: str, key: str) -> str:
+    if experiment == "svk-nonlinear":
+        return f"Table 3 ({key[0]} = {key[1:]})"
+    return "Table 1" if key == "R100" else "Table 2"
+
+
+def paper_comparisons(result: dict) -> list[dict]:
+    """``vs_paper`` entries of every cell of the tables."""
+    out = []
+    for key, table in PAPER[result["experiment"]].items():
+        for row in result[key]:
+            for column, value in table[row["filter"]].items():
+                out.append(comparison(table_name(result["experiment"], key), row["filter"], column, row[column], value))
+    return out
+
+
+def _whole(rows: list[dict]) -> dict[str, float]:
+    return {row["filter"]: row["whole"] for row in rows}
+
+
+def claims(result: dict) -> list[dict]:
+    """The paper's claims on its Tables 1-3, checked on ``result`` (whole-sequence RMSE)."""
+    experiment = result["experiment"]
+    out = []
+    for key, table in PAPER[experiment].items():
+        ours = _whole(result[key])
+        paper = {name: cols["whole"] for name, cols in table.items()}
+        name = table_name(experiment, key)
+        rank = sorted(ours, key=ours.get).index("SVK") + 1
+        paper_rank = sorted(paper, key=paper.get).index("SVK") + 1
+        out.append(claim(f"{name}: SVK ranks {'best' if paper_rank == 1 else f'#{paper_rank}'} on the whole sequence",
+                         rank == paper_rank, f"vidtrack ranks SVK #{rank} ({ours['SVK']:.2f}; paper {paper['SVK']:.2f})"))
+        imm = [n for n in ours if n.startswith("IMM")]
+        agree = [n for n in imm if (ours["SVK"] < ours[n]) == (paper["SVK"] < paper[n])]
+        out.append(claim(f"{name}: SVK vs each IMM row ordered as in the paper", len(agree) == len(imm),
+                         f"{len(agree)}/{len(imm)} IMM rows on the paper's side of SVK"))
+        close = [n for n in imm if abs(relative_difference(ours[n], paper[n])) <= IMM_TOLERANCE]
+        out.append(claim(f"{name}: every IMM row within {100 * IMM_TOLERANCE:.0f} % of the paper (whole sequence)",
+                         len(close) == len(imm),
+                         "; ".join(f"{n} {ours[n]:.1f} vs {paper[n]:.1f} ({100 * relative_difference(ours[n], paper[n]):+.0f} %)"
+                                   for n in imm)))
+    return out
+
+
 def format_table(result: dict) -> str:
-    linear = result.get("experiment") != "svk-nonlinear"
+    experiment = result.get("experiment", "svk-linear")
+    linear = experiment != "svk-nonlinear"
     columns = ["whole", "CA", "Drift", "CV", "CA*", "Drift*", "CV*"] if linear else ["whole"]
     titles = {"whole": "Whole"}
-    lines = []
+    width = 22
+    lines = [LEGEND]
     for key in (k for k in result if k.startswith("R")):
+        paper = PAPER[experiment].get(key, {})
         table = "Table 1" if key == "R100" else "Table 2"
         caption = (f"{table}: RMSE on linear motion, R = {key[1:]} I" if linear
                    else f"Table 3: RMSE on non-linear motion, R = {key[1:]} I")
         lines.append(f"{caption} ({result['runs']} runs, seed {result['seed']})")
-        lines.append(f"{'Filter':<20}" + "".join(f"{titles.get(c, c):>10}" for c in columns))
+        lines.append(f"{'Filter':<20}" + "".join(f"{titles.get(c, c):>{width}}" for c in columns))
         for row in result[key]:
-            lines.append(f"{row['filter']:<20}" + "".join(f"{row[c]:>10.2f}" for c in columns))
+            ref = paper.get(row["filter"], {})
+            lines.append(f"{row['filter']:<20}" + "".join(cell(row[c], ref.get(c), width) for c in columns))
         lines.append("")
+    for c in result.get("claims", []):
+        lines.append(f"claim {'holds' if c['holds'] else 'does NOT hold'}: {c['claim']} -- {c['detail']}")
     return "\n".join(lines).rstrip()

@@ -144,7 +144,8 @@ def backward(G: np.ndarray, h: np.ndarray, product: str = "plain",
 def baum_welch(z_channels: Sequence[np.ndarray], G: np.ndarray, H: np.ndarray, *, iterations: int = 4,
                product: str = "plain", h_floor: float = 0.0, learn_H: bool = True, W0: Sequence[np.ndarray] | None = None,
                tol: float = 1e-4, smoothing: float = 1e-6,
-               shifts: Sequence[Sequence[np.ndarray | None]] | None = None) -> BaumWelchResult:
+               shifts: Sequence[Sequence[np.ndarray | None]] | None = None,
+               prior_weight: float = 0.0) -> BaumWelchResult:
     """Refine an embedded model ``(G, H)`` from measurement channel sequences (eqs. 17-19).
 
     Parameters
@@ -173,6 +174,12 @@ def baum_welch(z_channels: Sequence[np.ndarray], G: np.ndarray, H: np.ndarray, *
     shifts
         Per sequence and frame, an optional known translation matrix applied
         to the predicted position (``G`` then models the position before it).
+    prior_weight
+        MAP re-estimation with the initial ``G`` as a Dirichlet prior:
+        ``G <- (xi_sum + prior_weight * G_init) / column sums``, i.e. every
+        history column keeps ``prior_weight`` pseudo-frames of the initial
+        model (0: maximum likelihood, eq. 18).  Histories the posterior never
+        visits then keep the initial estimate instead of becoming uniform.
 
     Returns
     -------
@@ -182,6 +189,7 @@ def baum_welch(z_channels: Sequence[np.ndarray], G: np.ndarray, H: np.ndarray, *
     H = np.asarray(H, float).copy()
     order = G.ndim - 1
     result = BaumWelchResult(G, H)
+    G_init = G.copy()
     for _ in range(iterations):
         xi_sum = np.zeros_like(G)
         gz_num = np.zeros_like(H)
@@ -215,7 +223,7 @@ def baum_welch(z_channels: Sequence[np.ndarray], G: np.ndarray, H: np.ndarray, *
                     gamma = normalized(channel_product(a, b, product))  # alpha . beta
                     g = current_marginal(gamma)  # marginal of the current position
                     gz_num += np.outer(z[k], g)  # eq. 19: h(z) <- sum_k z_k (alpha_k . beta_k)
-        xi_sum += smoothing
+        xi_sum += smoothing + prior_weight * G_init
         G_new = xi_sum / xi_sum.sum(axis=0, keepdims=True)
         change = float(np.max(np.abs(G_new - G)))
         G = G_new
