@@ -67,6 +67,7 @@ def carlin_trajectories(x: np.ndarray, estimates: dict[str, np.ndarray], out_dir
     ax.plot(k, x[1:], "k--", lw=2, label="truth")
     for name, est in estimates.items():
         ax.plot(k, est, lw=1, marker=".", ms=3, label=name)
+    ax.set_ylim(x.min() - 10.0, x.max() + 10.0)  # an EKF divergence would flatten everything else
     ax.set_xlabel("k")
     ax.set_ylabel("x_k")
     ax.set_title("Carlin's experiment (univariate growth model): truth vs estimates, one test sequence", fontsize=10)

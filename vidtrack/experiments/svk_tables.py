@@ -438,7 +438,7 @@ def format_table(result: dict) -> str:
     linear = experiment != "svk-nonlinear"
     columns = ["whole", "CA", "Drift", "CV", "CA*", "Drift*", "CV*"] if linear else ["whole"]
     titles = {"whole": "Whole"}
-    width = 22
+    width = 27
     lines = [LEGEND]
     for key in (k for k in result if k.startswith("R")):
         paper = PAPER[experiment].get(key, {})

@@ -82,12 +82,15 @@ def likelihoods(H: np.ndarray, z_channels: np.ndarray, floor: float = 0.0) -> np
 
 @dataclass
 class BaumWelchResult:
-    """Refined ``G``, ``H`` and the per-iteration log-likelihood (``sum_k log`` of the update normalisers)."""
+    """Refined ``G``, ``H``, the per-iteration log-likelihood (``sum_k log`` of the update normalisers), the
+    largest change of ``G`` per iteration, and the expected number of transitions out of each history in the
+    last iteration (``history_mass``, the shape of ``G[0]``: how much data re-estimated each column)."""
 
     G: np.ndarray
     H: np.ndarray
     log_likelihood: list[float] = field(default_factory=list)
     change: list[float] = field(default_factory=list)
+    history_mass: np.ndarray | None = None
 
 
 def _broadcast_current(h: np.ndarray, order: int) -> np.ndarray:
@@ -223,6 +226,7 @@ def baum_welch(z_channels: Sequence[np.ndarray], G: np.ndarray, H: np.ndarray, *
                     gamma = normalized(channel_product(a, b, product))  # alpha . beta
                     g = current_marginal(gamma)  # marginal of the current position
                     gz_num += np.outer(z[k], g)  # eq. 19: h(z) <- sum_k z_k (alpha_k . beta_k)
+        result.history_mass = xi_sum.sum(axis=0)
         xi_sum += smoothing + prior_weight * G_init
         G_new = xi_sum / xi_sum.sum(axis=0, keepdims=True)
         change = float(np.max(np.abs(G_new - G)))
