@@ -266,7 +266,7 @@ def test_carlin_reproduction_small():
     from vidtrack.experiments import cbt_carlin
 
     args = argparse.Namespace(runs=8, seed=0, steps=50, train=30, channels=12, order=2, baum_welch=2,
-                              bw_product="plain", bw_prior=0.0, bw_fixed_h=False)
+                              bw_product="plain", bw_prior=10.0, bw_learn_h=False)
     result = cbt_carlin.run(args, lambda it, **kw: it)
     rmse = result["rmse"]
     assert set(rmse) == {"CBT", "EKF", "Grid", "SIR PF"} and result["runs"] == 8
