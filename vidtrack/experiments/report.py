@@ -90,8 +90,9 @@ def render(sections: list[dict], *, seed: int) -> str:
     claims = [(s["name"], c) for s in sections for c in s["claims"]]
     held = sum(c["holds"] for _, c in claims)
     lines = ["# vidtrack reproduce all", "",
-             f"Every experiment at its defaults, seed {seed}; vidtrack's figures come from this run, the papers' "
-             "values are typed from their tables (the targets).", "",
+             f"Every experiment at its defaults (cbt-detections with 5 runs, the SVK tables with --imm-variants), "
+             f"seed {seed}; vidtrack's figures come from this run, the papers' values are typed from their tables "
+             "(the targets).", "",
              f"## Claims: {held} of {len(claims)} hold", "",
              "| experiment | claim | holds | vidtrack |", "|---|---|---|---|"]
     for name, c in claims:
