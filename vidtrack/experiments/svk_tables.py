@@ -45,7 +45,7 @@ in Tables 1-2, 1 of 8 in Table 3; 3 runs, seed 0).  For the worst row no
 reading of the paper can get there:
 
 *IMM CV, Q = 1e-4 R, linear motion (paper 76.05 / 116.60; every variant
-690-1440).*  In the CA interval the speed grows to 2400, so the DR model
+670-1440).*  In the CA interval the speed grows to 2400, so the DR model
 predicts the position ``v dt`` (up to 1200, i.e. over 100 sigma of ``R``)
 short, and its velocity 0 against a measured ``v``.  Its likelihood relative
 to CV is at most ``exp(-(v dt)^2 / 2 S)``: ``mu_DR`` is numerically 0 after a
@@ -58,13 +58,13 @@ is augmented, and whichever estimate is scored, since ``mu_CV ~ 1``).  The
 paper's own Kalman CV Q = 1e-4 R has RMSE 1213.78 on the CA interval; its IMM
 CV Q = 1e-4 R has 69.78 there -- 17 times less, with the only model not
 refuted being that very filter.  That is not reachable by any IMM of a DR
-and a CV model tuned ``Q = 1e-4 R`` (vidtrack: 1206 on the interval, as the
+and a CV model tuned ``Q = 1e-4 R`` (vidtrack: 1203 on the interval, as the
 Kalman CV).  The paper's IMMs were presumably tuned or implemented otherwise
 than it states for the Kalman rows.  The same paper numbers also
 rank IMM CV Q = 1e-2R on the non-linear motion (289.90) four times worse
 than its own Kalman CV (72.69) and twice worse than its Kalman DR (143.63);
-every variant above gives 50-68, between and below its models, as an IMM
-with a uniform TPM does.
+every variant above gives 50-69, at or below its better model (vidtrack's
+Kalman CV Q = 1e-2 R: about 62), which is what mixing two models does.
 """
 
 from __future__ import annotations
