@@ -87,7 +87,8 @@ from ..filters.pmht import PMHT
 from ..learn.baum_welch import baum_welch, chain_counts
 from .paper import LEGEND, cell, claim, comparison, relative_difference
 
-DESCRIPTION = "RC-car-style table (CBT paper): CBT learned from unassociated detections vs PDAF vs detector"
+DESCRIPTION = ("RC-car-style table (CBT paper): CBT learned from unassociated detections (covariance estimate, "
+               "Baum-Welch) vs CBT learned with associations, PMHT, PDAF, detector")
 
 WIDTH, HEIGHT = 320.0, 240.0
 CAPS = (np.inf, 20.0, 5.0)
