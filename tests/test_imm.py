@@ -59,3 +59,14 @@ def test_svk_imm_variants_run_and_report_against_the_paper(monkeypatch):
         assert all(np.isfinite(v) and v > 0 for t in tables.values() for v in t.values())
     table = svk_tables.format_imm_variants({"experiment": "svk-nonlinear", "imm_variant_runs": 1, "imm_variants": out})
     assert "paper" in table and "289.90" in table
+
+
+def test_float64_mode_probabilities_underflow_to_the_predicted_ones():
+    from vidtrack.filters.imm import float64_mode_probabilities
+
+    c = np.array([0.2, 0.3, 0.5])
+    logL = np.array([-3.0, -1.0, -2.0])
+    w = c * np.exp(logL)
+    assert np.allclose(float64_mode_probabilities(c, logL), w / w.sum())  # no underflow: the exact posterior
+    assert np.allclose(float64_mode_probabilities(c, np.array([-800.0, -1.0, -900.0])), [0, 1, 0])
+    assert np.allclose(float64_mode_probabilities(c, np.array([-800.0, -760.0, -900.0])), c)  # all underflow

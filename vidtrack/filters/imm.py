@@ -164,6 +164,19 @@ def mixed_order_mix(xs: Sequence[np.ndarray], Ps: Sequence[np.ndarray], mu: np.n
     return x0s, P0s, c
 
 
+def float64_mode_probabilities(c: np.ndarray, log_likelihoods: np.ndarray) -> np.ndarray:
+    """``mu_j = c_j L_j / sum_l c_l L_l`` with ``L_j = exp(log L_j)`` in float64.
+
+    Each ``L_j`` underflows to 0 below ~1e-323 (a Mahalanobis distance of
+    about 38); when every one does, ``0 / 0`` is replaced by the predicted
+    probabilities ``c``, which is what a guarded direct implementation does.
+    """
+    with np.errstate(under="ignore"):
+        post = np.asarray(c, float) * np.exp(np.asarray(log_likelihoods, float))
+    total = float(post.sum())
+    return post / total if total > 0 else np.asarray(c, float) / float(np.sum(c))
+
+
 class MixedOrderIMM:
     """IMM over Kalman filters of *different* state sizes (prefixes of one state), see :func:`mixed_order_mix`.
 
@@ -179,15 +192,23 @@ class MixedOrderIMM:
     estimate
         ``"combined"``: the moment-matched mixture (missing components
         counted as 0); ``"mode"``: the most likely model's own estimate.
+    likelihood
+        ``"log"``: mode probabilities from log-likelihoods (numerically
+        sound); ``"float64"``: from the Gaussian densities evaluated in
+        float64, as a direct implementation computes them -- they underflow
+        to 0 once the innovation is beyond ~38 sigma, and when every model's
+        does, the mode probabilities fall back to the predicted ones ``c``
+        (:func:`float64_mode_probabilities`).
     """
 
     def __init__(self, filters: Sequence[KalmanFilter], transition: np.ndarray, *, pad: str = "zero",
-                 pad_var: float = 0.0, estimate: str = "combined") -> None:
+                 pad_var: float = 0.0, estimate: str = "combined", likelihood: str = "log") -> None:
         self.filters = list(filters)
         self.transition = np.asarray(transition, dtype=float)
         self.pad = pad
         self.pad_var = pad_var
         self.estimate = estimate
+        self.likelihood = likelihood
 
     @property
     def n_state(self) -> int:
@@ -215,9 +236,12 @@ class MixedOrderIMM:
 
     def update(self, z: np.ndarray, R: np.ndarray | None = None) -> None:
         logL = np.array([f.update(z, R).log_likelihood for f in self.filters])
-        log_post = np.log(np.maximum(self.c_, 1e-300)) + logL
-        weights = np.exp(log_post - log_post.max())
-        self.mu_ = weights / weights.sum()
+        if self.likelihood == "float64":
+            self.mu_ = float64_mode_probabilities(self.c_, logL)
+        else:
+            log_post = np.log(np.maximum(self.c_, 1e-300)) + logL
+            weights = np.exp(log_post - log_post.max())
+            self.mu_ = weights / weights.sum()
         self._combine()
 
     def _combine(self) -> None:
