@@ -62,11 +62,14 @@ def test_svk_imm_variants_run_and_report_against_the_paper(monkeypatch):
 
 
 def test_float64_mode_probabilities_underflow_to_the_predicted_ones():
-    from vidtrack.filters.imm import float64_mode_probabilities
+    from vidtrack.filters.imm import float_mode_probabilities as probs
 
     c = np.array([0.2, 0.3, 0.5])
     logL = np.array([-3.0, -1.0, -2.0])
     w = c * np.exp(logL)
-    assert np.allclose(float64_mode_probabilities(c, logL), w / w.sum())  # no underflow: the exact posterior
-    assert np.allclose(float64_mode_probabilities(c, np.array([-800.0, -1.0, -900.0])), [0, 1, 0])
-    assert np.allclose(float64_mode_probabilities(c, np.array([-800.0, -760.0, -900.0])), c)  # all underflow
+    assert np.allclose(probs(c, logL), w / w.sum())  # no underflow: the exact posterior
+    assert np.allclose(probs(c, logL, np.float32), w / w.sum(), rtol=1e-6)
+    assert np.allclose(probs(c, np.array([-800.0, -1.0, -900.0])), [0, 1, 0])
+    assert np.allclose(probs(c, np.array([-800.0, -760.0, -900.0])), c)  # all underflow: the predicted ones
+    assert np.allclose(probs(c, np.array([-120.0, -110.0, -500.0]), np.float32), c)  # float32 underflows sooner
+    assert np.allclose(probs(c, np.array([-120.0, -110.0, -500.0])), [0, 1, 0], atol=1e-4)

@@ -164,15 +164,17 @@ def mixed_order_mix(xs: Sequence[np.ndarray], Ps: Sequence[np.ndarray], mu: np.n
     return x0s, P0s, c
 
 
-def float64_mode_probabilities(c: np.ndarray, log_likelihoods: np.ndarray) -> np.ndarray:
-    """``mu_j = c_j L_j / sum_l c_l L_l`` with ``L_j = exp(log L_j)`` in float64.
+def float_mode_probabilities(c: np.ndarray, log_likelihoods: np.ndarray, dtype=np.float64) -> np.ndarray:
+    """``mu_j = c_j L_j / sum_l c_l L_l`` with the densities ``L_j = exp(log L_j)`` evaluated in ``dtype``.
 
-    Each ``L_j`` underflows to 0 below ~1e-323 (a Mahalanobis distance of
-    about 38); when every one does, ``0 / 0`` is replaced by the predicted
+    In float64 each ``L_j`` underflows to 0 below ``exp(-745)`` (a
+    Mahalanobis distance of about 38), in float32 below ``exp(-104)`` (about
+    14); when every one does, ``0 / 0`` is replaced by the predicted
     probabilities ``c``, which is what a guarded direct implementation does.
     """
     with np.errstate(under="ignore"):
-        post = np.asarray(c, float) * np.exp(np.asarray(log_likelihoods, float))
+        L = np.exp(np.asarray(log_likelihoods, dtype=dtype)).astype(float)
+    post = np.asarray(c, float) * L
     total = float(post.sum())
     return post / total if total > 0 else np.asarray(c, float) / float(np.sum(c))
 
@@ -194,11 +196,11 @@ class MixedOrderIMM:
         counted as 0); ``"mode"``: the most likely model's own estimate.
     likelihood
         ``"log"``: mode probabilities from log-likelihoods (numerically
-        sound); ``"float64"``: from the Gaussian densities evaluated in
-        float64, as a direct implementation computes them -- they underflow
-        to 0 once the innovation is beyond ~38 sigma, and when every model's
-        does, the mode probabilities fall back to the predicted ones ``c``
-        (:func:`float64_mode_probabilities`).
+        sound); ``"float64"`` / ``"float32"``: from the Gaussian densities
+        evaluated in that precision, as a direct implementation computes
+        them -- they underflow to 0 once the innovation is beyond about 38 /
+        14 sigma, and when every model's does, the mode probabilities fall
+        back to the predicted ones ``c`` (:func:`float_mode_probabilities`).
     """
 
     def __init__(self, filters: Sequence[KalmanFilter], transition: np.ndarray, *, pad: str = "zero",
@@ -236,8 +238,8 @@ class MixedOrderIMM:
 
     def update(self, z: np.ndarray, R: np.ndarray | None = None) -> None:
         logL = np.array([f.update(z, R).log_likelihood for f in self.filters])
-        if self.likelihood == "float64":
-            self.mu_ = float64_mode_probabilities(self.c_, logL)
+        if self.likelihood in ("float64", "float32"):
+            self.mu_ = float_mode_probabilities(self.c_, logL, np.dtype(self.likelihood))
         else:
             log_post = np.log(np.maximum(self.c_, 1e-300)) + logL
             weights = np.exp(log_post - log_post.max())
