@@ -265,7 +265,8 @@ def test_missing_or_malformed_model_is_a_one_line_usage_error(tmp_path, capsys, 
 def test_carlin_reproduction_small():
     from vidtrack.experiments import cbt_carlin
 
-    args = argparse.Namespace(runs=8, seed=0, steps=50, train=30, channels=12, order=2, baum_welch=2)
+    args = argparse.Namespace(runs=8, seed=0, steps=50, train=30, channels=12, order=2, baum_welch=2,
+                              bw_product="plain", bw_prior=10.0, bw_learn_h=False)
     result = cbt_carlin.run(args, lambda it, **kw: it)
     rmse = result["rmse"]
     assert set(rmse) == {"CBT", "EKF", "Grid", "SIR PF"} and result["runs"] == 8
@@ -273,15 +274,20 @@ def test_carlin_reproduction_small():
     ll = result["baum_welch"]["log_likelihood"]
     assert len(ll) == 2 and ll[1] >= ll[0] and np.isfinite(result["rmse_extra"]["CBT+BW"])
     assert "Channel Based Tracking" in cbt_carlin.format_table(result)
+    # the paper's values beside vidtrack's, and the claims, in the JSON
+    cbt = next(c for c in result["vs_paper"] if c["row"] == "CBT")
+    assert cbt["paper"] == 5.43 and cbt["rel_diff"] == pytest.approx((rmse["CBT"] - 5.43) / 5.43)
+    assert [c["holds"] for c in result["claims"]] and all(isinstance(c["holds"], bool) for c in result["claims"])
 
 
 def test_detections_reproduction_small():
     from vidtrack.experiments import cbt_detections
 
-    args = argparse.Namespace(runs=1, seed=0, frames=150, objects=2, clutter=3.0, channels=20, order=2, iterations=0)
+    args = argparse.Namespace(runs=1, seed=0, frames=150, objects=2, clutter=3.0, channels=20, order=2, iterations=0,
+                              bw_product="sqrt", bw_prior=0.1, no_pmht=False)
     result = cbt_detections.run(args, lambda it, **kw: it)
     r = result["rmse"]
-    assert set(r) == {"CBT", "PDAF", "Detector"} and set(r["CBT"]) == {"inf", "20", "5"}
+    assert set(r) == {"CBT", "CBT associated", "PMHT", "PDAF", "Detector"} and set(r["CBT"]) == {"inf", "20", "5"}
     assert r["CBT"]["inf"] < r["Detector"]["inf"]
     assert r["CBT"]["5"] <= r["CBT"]["20"] <= r["CBT"]["inf"]
     assert "Detector" in cbt_detections.format_table(result)

@@ -246,6 +246,16 @@ def run_reproduce(argv: Sequence[str]) -> int:
             except ModuleNotFoundError:
                 description = "(not available in this build)"
             print(f"{name:<16} {description}")
+        print(f"{'all':<16} every experiment into one report: vidtrack reproduce all --out DIR")
+        return 0
+    if known.name == "all":
+        from .experiments import report
+
+        sub = OneLineParser(prog="vidtrack reproduce all", description=report.DESCRIPTION)
+        report.add_arguments(sub)
+        args = sub.parse_args(rest)
+        path = report.run_all(args, lambda it=None, **kw: progress_bar(it, quiet=args.quiet, unit="run", **kw))
+        print(f"wrote {path}", file=sys.stderr)
         return 0
     if known.name not in EXPERIMENTS:
         raise UsageError(f"unknown experiment {known.name!r}; valid: {', '.join(EXPERIMENTS)}")

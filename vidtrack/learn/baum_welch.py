@@ -82,12 +82,15 @@ def likelihoods(H: np.ndarray, z_channels: np.ndarray, floor: float = 0.0) -> np
 
 @dataclass
 class BaumWelchResult:
-    """Refined ``G``, ``H`` and the per-iteration log-likelihood (``sum_k log`` of the update normalisers)."""
+    """Refined ``G``, ``H``, the per-iteration log-likelihood (``sum_k log`` of the update normalisers), the
+    largest change of ``G`` per iteration, and the expected number of transitions out of each history in the
+    last iteration (``history_mass``, the shape of ``G[0]``: how much data re-estimated each column)."""
 
     G: np.ndarray
     H: np.ndarray
     log_likelihood: list[float] = field(default_factory=list)
     change: list[float] = field(default_factory=list)
+    history_mass: np.ndarray | None = None
 
 
 def _broadcast_current(h: np.ndarray, order: int) -> np.ndarray:
@@ -144,7 +147,8 @@ def backward(G: np.ndarray, h: np.ndarray, product: str = "plain",
 def baum_welch(z_channels: Sequence[np.ndarray], G: np.ndarray, H: np.ndarray, *, iterations: int = 4,
                product: str = "plain", h_floor: float = 0.0, learn_H: bool = True, W0: Sequence[np.ndarray] | None = None,
                tol: float = 1e-4, smoothing: float = 1e-6,
-               shifts: Sequence[Sequence[np.ndarray | None]] | None = None) -> BaumWelchResult:
+               shifts: Sequence[Sequence[np.ndarray | None]] | None = None,
+               prior_weight: float = 0.0) -> BaumWelchResult:
     """Refine an embedded model ``(G, H)`` from measurement channel sequences (eqs. 17-19).
 
     Parameters
@@ -173,6 +177,12 @@ def baum_welch(z_channels: Sequence[np.ndarray], G: np.ndarray, H: np.ndarray, *
     shifts
         Per sequence and frame, an optional known translation matrix applied
         to the predicted position (``G`` then models the position before it).
+    prior_weight
+        MAP re-estimation with the initial ``G`` as a Dirichlet prior:
+        ``G <- (xi_sum + prior_weight * G_init) / column sums``, i.e. every
+        history column keeps ``prior_weight`` pseudo-frames of the initial
+        model (0: maximum likelihood, eq. 18).  Histories the posterior never
+        visits then keep the initial estimate instead of becoming uniform.
 
     Returns
     -------
@@ -182,6 +192,7 @@ def baum_welch(z_channels: Sequence[np.ndarray], G: np.ndarray, H: np.ndarray, *
     H = np.asarray(H, float).copy()
     order = G.ndim - 1
     result = BaumWelchResult(G, H)
+    G_init = G.copy()
     for _ in range(iterations):
         xi_sum = np.zeros_like(G)
         gz_num = np.zeros_like(H)
@@ -215,7 +226,8 @@ def baum_welch(z_channels: Sequence[np.ndarray], G: np.ndarray, H: np.ndarray, *
                     gamma = normalized(channel_product(a, b, product))  # alpha . beta
                     g = current_marginal(gamma)  # marginal of the current position
                     gz_num += np.outer(z[k], g)  # eq. 19: h(z) <- sum_k z_k (alpha_k . beta_k)
-        xi_sum += smoothing
+        result.history_mass = xi_sum.sum(axis=0)
+        xi_sum += smoothing + prior_weight * G_init
         G_new = xi_sum / xi_sum.sum(axis=0, keepdims=True)
         change = float(np.max(np.abs(G_new - G)))
         G = G_new
