@@ -55,6 +55,7 @@ def main(argv: Sequence[str]) -> int:
     if stage_time is not None:
         stage_time.clear()  # time the steady state, not the bootstrap
     wall = 0.0
+    cpu = 0.0
     while frames < args.max_frames - 1:
         t = time.perf_counter()
         frame = next(source, None)
@@ -62,6 +63,7 @@ def main(argv: Sequence[str]) -> int:
         if frame is None:
             break
         start = time.perf_counter()
+        cpu_start = time.process_time()
         named_before = sum(stage_time.values()) if stage_time is not None else 0.0
         t = time.perf_counter()
         prior = filt.predict()
@@ -80,6 +82,7 @@ def main(argv: Sequence[str]) -> int:
         named_after = sum(stage_time.values()) if stage_time is not None else 0.0
         totals["learn (other)"] += learn_s - (named_after - named_mid)
         wall += time.perf_counter() - start
+        cpu += time.process_time() - cpu_start
         frames += 1
     if frames == 0:
         raise UsageError("need at least two frames to benchmark")
@@ -95,5 +98,7 @@ def main(argv: Sequence[str]) -> int:
         print(f"{name:<16}{ms:>10.2f}{ms / total_ms * 100:>7.1f}%")
     print(f"{'total':<16}{total_ms:>10.2f}")
     print(f"tracking fps (decode excluded): {frames / wall:.1f}")
+    # on a shared machine the wall clock also counts other processes' turns; the CPU time does not
+    print(f"tracking fps by this process's CPU time: {frames / max(cpu, 1e-9):.1f}")
     sys.stdout.flush()
     return 0

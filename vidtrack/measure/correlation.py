@@ -399,7 +399,9 @@ class CorrelationFilter:
         import cv2
 
         step = self.cell_step(box_size)
-        region = np.maximum(np.asarray(region_size, float), self.window_size(box_size))
+        frame = np.array([image.shape[1], image.shape[0]], float)
+        # never more than the frame (plus a window): the cost and memory stay bounded however large the request
+        region = np.clip(np.asarray(region_size, float), self.window_size(box_size), frame + self.window_size(box_size))
         cells = np.maximum(np.round(region / step).astype(int), 8)
         patch = cut_window(image, centre, cells * step, (int(cells[0]) * self.cell, int(cells[1]) * self.cell))
         z = cell_features(patch, cell=self.cell, colour=self.colour)

@@ -68,13 +68,18 @@ ablation in the README shows what each buys):
   detected centre; the Kalman filter smooths it (``r_size``, ``q_size``)
   with the size rate decaying by ``size_damping`` per frame (see
   :class:`~vidtrack.filters.mil.MILKalmanFilter`);
-* failure and recovery: with no inlier measurement, a correlation peak of
-  quality at least ``cf_reacquire`` is the measurement.  While lost the
-  filter (restricted to the target's own cells, so a static background the
-  target left does not fire) is slid over the region the prediction may be in
-  (``redetect_margin`` box sizes plus ``lam sigma``, eq. 8) and, after
-  ``global_after`` lost frames, every ``global_every`` frames over the whole
-  frame; the window is then searched around the best peak;
+* failure and recovery: while lost, the superpixel region and the positive
+  bag grow with the covariance (eq. 8, ``lost_bag``) and the correlation
+  window stays on the prediction; after ``global_after`` lost frames (a loss
+  that long is no longer an occlusion), every ``global_every`` frames, the
+  filter restricted to the target's own cells (so a static background the
+  target left does not fire) is slid over the whole frame and the window is
+  searched around its best peak.  A peak of quality at least
+  ``cf_reacquire`` away from the prediction is only a proposal: the
+  superpixels, the SVM and the graph cut run around it, and it becomes the
+  measurement only if they find the target's inliers there.  Searching
+  wide from the first lost frame made ``data/sample.mp4``'s look-alike take
+  over while the target was behind the post;
 * centre refinement by NCC (``refine="ncc"``, the previous default):
   normalised cross-correlation (:func:`match_templates`) of a grey template
   of the object within ``ncc_radius`` box sizes of the inlier centre; the
@@ -101,7 +106,7 @@ from __future__ import annotations
 
 import time
 from collections import defaultdict
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import cv2
 import numpy as np
@@ -298,14 +303,15 @@ class MILMeasurer:
     cf_motion
         Weight of the squared distance (box units) from the inlier centre in the fusion.
     cf_reacquire
-        With no inlier measurement, a correlation peak of this quality is the measurement.
+        While lost, a correlation peak of this quality away from the prediction
+        moves the superpixel search there (the inliers verify it).
     cf_learn_above, cf_learning_rate, cf_padding
         The correlation filter learns from frames whose detection reached this
         quality, at this rate; its window is the box grown by ``cf_padding``.
-    redetect_margin
-        While lost, the filter is slid over this many box sizes (plus ``lam sigma``) each side of the prediction.
     global_after, global_every
         After this many lost frames, every ``global_every`` frames, the whole frame is searched.
+    redetect
+        Re-detection by the correlation filter (the whole-frame search and ``cf_reacquire``).
     ncc_radius
         The refinement searches this fraction of the box size around the inlier-based centre.
     ncc_min
@@ -345,8 +351,8 @@ class MILMeasurer:
                  ncc_motion: float = 0.4, ncc_reacquire: float = 0.7, ncc_floor: float | None = 0.45,
                  svm_average: bool = False, ncc_combine: str = "mean",
                  size_from: str = "cf", cf_min: float = 0.15, cf_motion: float = 0.2, cf_reacquire: float = 0.9,
-                 cf_learn_above: float = 0.2, cf_learning_rate: float = 0.02, cf_padding: float = 2.5, redetect_margin: float = 1.5,
-                 global_after: int = 10, global_every: int = 5,
+                 cf_learn_above: float = 0.2, cf_learning_rate: float = 0.02, cf_padding: float = 2.5,
+                 global_after: int = 30, global_every: int = 5, redetect: bool = True,
                  rng: np.random.Generator | int | None = None) -> None:
         self.lam = lam
         self.pad = pad
@@ -394,9 +400,9 @@ class MILMeasurer:
         self.cf_learn_above = cf_learn_above
         self.cf_learning_rate = cf_learning_rate
         self.cf_padding = cf_padding
-        self.redetect_margin = redetect_margin
         self.global_after = global_after
         self.global_every = global_every
+        self.redetect = redetect
         self.rng = rng
 
     # -- helpers --------------------------------------------------------
@@ -407,23 +413,21 @@ class MILMeasurer:
         return now
 
     def _correlate(self, frame: Frame, prior: Estimate, sigma: np.ndarray) -> CorrelationResult:
-        """The correlation filter's detection around the prior; while lost, around the best peak of a wider search.
+        """The correlation filter's detection around the prior; after a long loss, around the frame's best peak.
 
-        The re-detection region reaches ``redetect_margin`` box sizes plus
-        ``lam sigma`` (eq. 8) on each side of the prediction; after
-        ``global_after`` lost frames, every ``global_every`` frames, it is the
-        whole frame.
+        After ``global_after`` lost frames, every ``global_every`` frames,
+        the target-only filter is slid over the whole frame and the window is
+        searched around its best peak.  Before that a loss is taken for an
+        occlusion: only the window around the prediction is searched (a
+        look-alike elsewhere must not take over while the target is hidden).
         """
         t0 = time.perf_counter()
         size = prior.box.size
         centre = prior.box.center
-        if prior.status == LOST:
-            if self.lost_run_ >= self.global_after and self.lost_run_ % max(self.global_every, 1) == 0:
-                centre = np.array([frame.width / 2.0, frame.height / 2.0])
-                region = np.array([frame.width, frame.height], float)
-            else:
-                region = size * (1.0 + 2.0 * self.redetect_margin) + 2.0 * self.lam * sigma
-            centre = self.cf_.search(frame.image, centre, region, size).centre   # target only: no stale context
+        if (prior.status == LOST and self.redetect and self.lost_run_ >= self.global_after
+                and self.lost_run_ % max(self.global_every, 1) == 0):
+            whole = np.array([frame.width, frame.height], float)
+            centre = self.cf_.search(frame.image, whole / 2.0, whole, size).centre   # target only: no stale context
         result = self.cf_.detect(frame.image, centre, size)
         self._tic("correlation", t0)
         return result
@@ -538,6 +542,10 @@ class MILMeasurer:
         self.lost_run_ = self.lost_run_ + 1 if prior.status == LOST else 0
         cf = self._correlate(frame, prior, sigma) if self.cf_ is not None else None
         self.cf_result_ = cf
+        if (cf is not None and self.redetect and prior.status == LOST and cf.quality >= self.cf_reacquire
+                and np.linalg.norm(cf.centre - prior.box.center) > 0.5 * prior.box.scale):
+            # re-detection: the correlation filter proposes, the superpixels and the SVM verify there
+            prior = replace(prior, box=Box.from_center(*cf.centre, *prior.box.size))
         out = self._superpixels(frame, prior.box.center, prior.box.size, sigma)
         if out is None:
             return None
@@ -609,11 +617,6 @@ class MILMeasurer:
                     if self.size_from == "cf" and cf.quality >= self.cf_min:
                         size = cf.size
                 box = Box.from_center(float(fx), float(fy), float(size[0]), float(size[1]))
-        if box is None and cf is not None and self.refine == "cf" and cf.quality >= self.cf_reacquire:
-            # no inliers: the correlation filter alone re-acquires a clear peak
-            quality = float(cf.quality)
-            size = cf.size if self.size_from == "cf" else prior.box.size
-            box = Box.from_center(float(cf.centre[0]), float(cf.centre[1]), float(size[0]), float(size[1]))
         if box is None and self.template_ is not None and self.ncc_reacquire < 1.0:
             # no inliers: look for the template wherever the prediction may be (lam sigma)
             grey = to_gray(region.image)
