@@ -662,7 +662,8 @@ class CBTFilter:
 
     State: the box centre on a cos² channel grid over the whole frame
     (spacing ``spacing_boxes`` box sizes, clipped to ``[min_spacing,
-    max_spacing]`` px).  Each axis carries an order-``order`` embedded Markov
+    max_spacing]`` px; no upper bound by default, so the grid has as many
+    channels per box on a 1280x720 frame as on a 320x240 one).  Each axis carries an order-``order`` embedded Markov
     model (state = the last ``order`` positions); the joint of the current
     centre is the product of the axis marginals (mean-field), the 2-D update
     with the detections is exact and its result is re-factorised.  The
@@ -691,7 +692,7 @@ class CBTFilter:
     order: int = 2
     spacing_boxes: float = 0.2
     min_spacing: float = 2.0
-    max_spacing: float = 12.0
+    max_spacing: float = float("inf")
     d_channels: int = 15
     d_range: float = 0.6
     prior_sigma: float = 0.12

@@ -89,7 +89,8 @@ class DetectionMeasurer:
     nms_fraction
         Non-maximum suppression radius, as a fraction of the smaller box side.
     min_score
-        Lowest score reported as a detection.
+        Lowest score reported as a detection (0.4 chosen for ``cbt`` on the tune
+        split: mean AUC 0.489, against 0.449 at 0.2 and 0.471 at 0.55).
     max_detections
         At most this many detections per frame.
     """
@@ -98,7 +99,7 @@ class DetectionMeasurer:
     margin: float = 1.0
     lost_margin: float = 2.0
     nms_fraction: float = 0.3
-    min_score: float = 0.2
+    min_score: float = 0.4
     max_detections: int = 10
 
     def initialize(self, frame: Frame, box: Box) -> None:

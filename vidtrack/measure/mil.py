@@ -305,9 +305,10 @@ class MILMeasurer:
     cf_reacquire
         While lost, a correlation peak of this quality away from the prediction
         moves the superpixel search there (the inliers verify it).
-    cf_learn_above, cf_learning_rate, cf_padding
+    cf_learn_above, cf_learning_rate, cf_padding, cf_window_cells
         The correlation filter learns from frames whose detection reached this
-        quality, at this rate; its window is the box grown by ``cf_padding``.
+        quality, at this rate; its window is the box grown by ``cf_padding``,
+        resampled to about ``cf_window_cells`` cells a side.
     global_after, global_every
         After this many lost frames, every ``global_every`` frames, the whole frame is searched.
     redetect
@@ -351,7 +352,7 @@ class MILMeasurer:
                  ncc_motion: float = 0.4, ncc_reacquire: float = 0.7, ncc_floor: float | None = 0.45,
                  svm_average: bool = False, ncc_combine: str = "mean",
                  size_from: str = "cf", cf_min: float = 0.15, cf_motion: float = 0.2, cf_reacquire: float = 0.9,
-                 cf_learn_above: float = 0.2, cf_learning_rate: float = 0.02, cf_padding: float = 2.5,
+                 cf_learn_above: float = 0.2, cf_learning_rate: float = 0.02, cf_padding: float = 2.5, cf_window_cells: int = 32,
                  global_after: int = 30, global_every: int = 5, redetect: bool = True,
                  rng: np.random.Generator | int | None = None) -> None:
         self.lam = lam
@@ -400,6 +401,7 @@ class MILMeasurer:
         self.cf_learn_above = cf_learn_above
         self.cf_learning_rate = cf_learning_rate
         self.cf_padding = cf_padding
+        self.cf_window_cells = cf_window_cells
         self.global_after = global_after
         self.global_every = global_every
         self.redetect = redetect
@@ -499,7 +501,8 @@ class MILMeasurer:
         self.lost_run_ = 0
         if self.refine == "cf" or self.size_from == "cf":
             t0 = time.perf_counter()
-            self.cf_ = CorrelationFilter(learning_rate=self.cf_learning_rate, padding=self.cf_padding)
+            self.cf_ = CorrelationFilter(learning_rate=self.cf_learning_rate, padding=self.cf_padding,
+                                         window_cells=self.cf_window_cells)
             self.cf_.initialize(frame.image, box)
             self._tic("correlation", t0)
         out = self._superpixels(frame, box.center, box.size, np.zeros(2))
