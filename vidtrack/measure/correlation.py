@@ -65,6 +65,13 @@ def dcf_terms(features_fft: np.ndarray, target_fft: np.ndarray) -> tuple[np.ndar
     return numerator, denominator
 
 
+def running_average(old: tuple, new: tuple, rate: float) -> tuple:
+    """DSST eq. 5 for each term: ``(1 - eta) old + eta new``; ``new`` itself when there is no ``old`` or ``eta >= 1``."""
+    if old[0] is None or rate >= 1.0:
+        return new
+    return tuple((1.0 - rate) * a + rate * b for a, b in zip(old, new))
+
+
 def dcf_response(numerator: np.ndarray, denominator: np.ndarray, features_fft: np.ndarray, lam: float,
                  shape: tuple[int, int]) -> np.ndarray:
     """``y = IFFT(sum_l conj(A_l) Z_l / (B + lambda))`` (DSST eq. 6), real ``(h, w)`` with the zero shift at ``(0, 0)``."""
@@ -173,7 +180,7 @@ class ScaleFilter:
         sigma = self.n_scales / np.sqrt(33.0) * self.sigma_factor
         self.target_fft_ = np.fft.fft(np.exp(-0.5 * self.exponents_ ** 2 / sigma ** 2))
         self.window_ = np.hanning(self.n_scales + 2)[1:-1]
-        self.numerator_ = None
+        self.numerator_ = self.denominator_ = None
         self.last_sample_fft_ = None
         self.update(image, box, rate=1.0)
 
@@ -198,11 +205,7 @@ class ScaleFilter:
             f = np.fft.fft(self.sample(image, box.center, box.size), axis=0)
         num = np.conj(self.target_fft_)[:, None] * f              # conj(G) F_l
         den = np.sum(f.real ** 2 + f.imag ** 2, axis=1)            # sum_l |F_l|^2
-        if self.numerator_ is None or rate >= 1.0:
-            self.numerator_, self.denominator_ = num, den
-        else:
-            self.numerator_ = (1.0 - rate) * self.numerator_ + rate * num
-            self.denominator_ = (1.0 - rate) * self.denominator_ + rate * den
+        self.numerator_, self.denominator_ = running_average((self.numerator_, self.denominator_), (num, den), rate)
 
     def estimate(self, image: np.ndarray, centre, size) -> float:
         """The scale change of the target around ``centre``: the factor of the best-responding scale."""
@@ -313,8 +316,7 @@ class CorrelationFilter:
         box_cells = box.scale / self.cell_step(box.size)
         self.box_cells_ = box.size / self.cell_step(box.size)     # the box's (w, h) in cells
         self.target_fft_ = np.fft.rfft2(gaussian_response(self.shape_, self.sigma_factor * box_cells))
-        self.numerator_ = None
-        self.denominator_ = None
+        self.numerator_ = self.denominator_ = None
         self.scale_ = ScaleFilter(colour=self.colour) if self.scale_filter else None
         if self.scale_ is not None:
             self.scale_.initialize(image, box)
@@ -327,11 +329,7 @@ class CorrelationFilter:
             self.scale_.update(image, box, rate=None if rate < 1.0 else rate)
         f = np.fft.rfft2(self.features(image, box.center, self.window_size(box.size)), axes=(0, 1))
         num, den = dcf_terms(f, self.target_fft_)
-        if self.numerator_ is None or rate >= 1.0:
-            self.numerator_, self.denominator_ = num, den
-        else:
-            self.numerator_ = (1.0 - rate) * self.numerator_ + rate * num
-            self.denominator_ = (1.0 - rate) * self.denominator_ + rate * den
+        self.numerator_, self.denominator_ = running_average((self.numerator_, self.denominator_), (num, den), rate)
         if self.quality_from == "target":
             self.target_filter_fft_ = np.fft.rfft2(self.spatial_filter(target_only=True), axes=(0, 1))
 
