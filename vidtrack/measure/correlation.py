@@ -22,14 +22,19 @@ and the response to a new window ``z`` is (DSST eq. 6)::
 Everything is measured in units of the target box: the window is the box
 grown by ``padding`` and resampled so that its square-root area spans
 ``window_cells`` cells, whatever the frame size, so the cost per frame is
-constant and a 640x480 video behaves like a 320x240 one.  Scale is searched
-by evaluating the same filter on windows of the current size times each of
-``scale_factors`` (the "few scales per frame" of SAMF); the best peak wins,
-with non-unit scales discounted by ``scale_penalty``.
+constant and a 640x480 video behaves like a 320x240 one.  Scale is
+estimated at the detected centre by DSST's separate 1-D scale filter
+(:class:`ScaleFilter`, sec. 3.2 of the DSST paper); the alternative, the
+same translation filter evaluated at a few scales per frame (SAMF's search,
+``scale_factors`` with non-unit scales discounted by ``scale_penalty``), is
+kept as an option.
 
 The quality of a response is a peak-to-sidelobe ratio (Bolme et al.):
 ``(peak - mean) / std`` of the response outside a small area around the
-peak, mapped linearly from ``psr_low`` (no target: 0) to ``psr_high`` (1).
+peak, mapped linearly from ``psr_low`` (no target: 0) to ``psr_high`` (1);
+by default it is measured on the response of the filter restricted to the
+target's own cells (``quality_from="target"``).  :meth:`CorrelationFilter.search`
+slides that target-only filter over a large region for re-detection.
 """
 
 from __future__ import annotations
