@@ -41,6 +41,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, replace
 
+import cv2
 import numpy as np
 
 from ..types import Box, Estimate, Frame, ScoreMap
@@ -361,16 +362,15 @@ class CorrelationFilter:
         if self.scale_ is not None and len(scales) == 1:   # DSST: the scale filter at the new position
             s = s * self.scale_.estimate(image, found, np.asarray(box_size, float) * s)
         size = np.asarray(box_size, float) * s
-        psr = peak_to_sidelobe(response, index, self.exclude_cells)
+        measured = response
         if self.quality_from == "target":   # is the target itself there? (the context may match without it)
-            target = np.fft.irfft2(np.sum(np.conj(self.target_filter_fft_) * z, axis=2), s=self.shape_)
-            psr = peak_to_sidelobe(target, index, self.exclude_cells)
+            measured = np.fft.irfft2(np.sum(np.conj(self.target_filter_fft_) * z, axis=2), s=self.shape_)
+        psr = peak_to_sidelobe(measured, index, self.exclude_cells)
         quality = float(np.clip((psr - self.psr_low) / (self.psr_high - self.psr_low), 0.0, 1.0))
         return CorrelationResult(window_centre=np.asarray(centre, float),
                                  centre=found, size=size,
                                  response=np.fft.fftshift(response), step=step, scale=float(s), peak=peak,
                                  psr=psr, quality=quality)
-
 
     def spatial_filter(self, *, target_only: bool = True) -> np.ndarray:
         """The learned filter in the spatial domain, ``(h, w, d)`` cells, target at the window centre.
@@ -399,8 +399,6 @@ class CorrelationFilter:
         region's area in box units, not with the frame.  The response is not
         circular; its PSR is measured in the same way.
         """
-        import cv2
-
         step = self.cell_step(box_size)
         frame = np.array([image.shape[1], image.shape[0]], float)
         # never more than the frame (plus a window): the cost and memory stay bounded however large the request
