@@ -663,7 +663,9 @@ class CBTFilter:
     State: the box centre on a cos² channel grid over the whole frame
     (spacing ``spacing_boxes`` box sizes, clipped to ``[min_spacing,
     max_spacing]`` px; no upper bound by default, so the grid has as many
-    channels per box on a 1280x720 frame as on a 320x240 one).  Each axis carries an order-``order`` embedded Markov
+    channels per box on a 1280x720 frame as on a 320x240 one; the old 12-px
+    cap scored 0.489 against 0.472 on the tune split with the correlation
+    detections, kept off for frame-size invariance).  Each axis carries an order-``order`` embedded Markov
     model (state = the last ``order`` positions); the joint of the current
     centre is the product of the axis marginals (mean-field), the 2-D update
     with the detections is exact and its result is re-factorised.  The
