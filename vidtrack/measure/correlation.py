@@ -482,6 +482,8 @@ class CorrelationScoreMapMeasurer:
         While lost, the re-detection region reaches this many box sizes on each side of the prior.
     size_limits
         The box size stays within these multiples of the initial size.
+    scale_filter
+        Estimate the size with the :class:`ScaleFilter` (off: the init box size throughout).
     """
 
     padding: float = 2.5
@@ -493,11 +495,12 @@ class CorrelationScoreMapMeasurer:
     learn_above: float = 0.2
     lost_margin: float = 1.5
     size_limits: tuple[float, float] = (0.2, 5.0)
+    scale_filter: bool = True
 
     def initialize(self, frame: Frame, box: Box) -> None:
         self.filter_ = CorrelationFilter(padding=self.padding, window_cells=self.window_cells,
                                          learning_rate=self.learning_rate, scale_factors=self.scale_factors,
-                                         psr_low=self.psr_low, psr_high=self.psr_high)
+                                         psr_low=self.psr_low, psr_high=self.psr_high, scale_filter=self.scale_filter)
         self.filter_.initialize(frame.image, box)
         self.init_size_ = box.size.copy()
         self.last_quality_ = 1.0

@@ -93,6 +93,8 @@ class DetectionMeasurer:
         split: mean AUC 0.489, against 0.449 at 0.2 and 0.471 at 0.55).
     max_detections
         At most this many detections per frame.
+    scale_filter
+        The ``cf`` detector estimates the box size (off: the init size).
     """
 
     detector: str = "cf"
@@ -101,9 +103,11 @@ class DetectionMeasurer:
     nms_fraction: float = 0.3
     min_score: float = 0.4
     max_detections: int = 10
+    scale_filter: bool = True
 
     def initialize(self, frame: Frame, box: Box) -> None:
-        self.detector_ = make_detector(self.detector, **({"margin": self.margin} if self.detector == "ncc" else {}))
+        options = {"margin": self.margin} if self.detector == "ncc" else {"scale_filter": self.scale_filter}
+        self.detector_ = make_detector(self.detector, **options)
         self.detector_.initialize(frame, box)
 
     def measure(self, frame: Frame, prior: Estimate) -> Detections | None:
