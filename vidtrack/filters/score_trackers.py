@@ -28,8 +28,8 @@ template map the way the seed chose its own (it tuned ``sigma_d`` for Bayes
 and ``Sigma_*``, ``alpha`` for NH), by mean success AUC, on the seven
 sequences that are now part of the *tune* split.  With the correlation-filter
 detector (the default map since) the detector's parameters and the grid's
-were chosen on the *tune* split by one protocol for all of them (mean AUC,
-seeds 0 and 1, see the README); re-tuning ``sigma_star`` (0.15: 0.480 vs
+were chosen on the *tune* split by one protocol for all of them (mean AUC
+over its 13 sequences, seeds 0 and 1; the figures are in the commit messages); re-tuning ``sigma_star`` (0.15: 0.480 vs
 0.492) did not help NH.
 
 All three mark the target ``lost`` when the map's peak score

@@ -518,7 +518,6 @@ class CorrelationScoreMapMeasurer:
         result = self.filter_.detect(frame.image, centre, size)
         result = replace(result, size=self._clamp_size(result.size))
         self.last_quality_ = result.quality
-        self.last_psr_ = result.psr
         self.last_size_ = result.size
         return result_score_map(result)
 

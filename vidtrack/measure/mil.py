@@ -98,8 +98,9 @@ ablation in the README shows what each buys):
   before the loss carried the prediction away more often than it carried it
   through an occlusion;
 * while lost, the positive bag and the graph cut's spatial prior are enlarged
-  by ``lam sigma`` as well (``lost_bag``), so that inliers can be found
-  wherever eq. 8's search region says the object may be.
+  by ``lam sigma`` (``lost_bag``, the growth named under failure and
+  recovery), so that inliers can be found wherever eq. 8's search region
+  says the object may be.
 """
 
 from __future__ import annotations
@@ -414,7 +415,7 @@ class MILMeasurer:
         self.timings_[name] += now - start
         return now
 
-    def _correlate(self, frame: Frame, prior: Estimate, sigma: np.ndarray) -> CorrelationResult:
+    def _correlate(self, frame: Frame, prior: Estimate) -> CorrelationResult:
         """The correlation filter's detection around the prior; after a long loss, around the frame's best peak.
 
         After ``global_after`` lost frames, every ``global_every`` frames,
@@ -543,7 +544,7 @@ class MILMeasurer:
         if prior.covariance is not None:
             sigma = np.sqrt(np.maximum(np.diag(prior.covariance)[:2], 0.0))
         self.lost_run_ = self.lost_run_ + 1 if prior.status == LOST else 0
-        cf = self._correlate(frame, prior, sigma) if self.cf_ is not None else None
+        cf = self._correlate(frame, prior) if self.cf_ is not None else None
         self.cf_result_ = cf
         if (cf is not None and self.redetect and prior.status == LOST and cf.quality >= self.cf_reacquire
                 and np.linalg.norm(cf.centre - prior.box.center) > 0.5 * prior.box.scale):
