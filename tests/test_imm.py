@@ -73,3 +73,56 @@ def test_float64_mode_probabilities_underflow_to_the_predicted_ones():
     assert np.allclose(probs(c, np.array([-800.0, -760.0, -900.0])), c)  # all underflow: the predicted ones
     assert np.allclose(probs(c, np.array([-120.0, -110.0, -500.0]), np.float32), c)  # float32 underflows sooner
     assert np.allclose(probs(c, np.array([-120.0, -110.0, -500.0])), [0, 1, 0], atol=1e-4)
+
+
+def _interval_rmse(est, truth):
+    e2 = (est - truth) ** 2
+    n = svk_tables.SEGMENT
+    return [float(np.sqrt(e2[i * n:(i + 1) * n].mean())) for i in range(3)], [
+        float(np.sqrt(e2[(i + 1) * n - svk_tables.STEADY:(i + 1) * n].mean())) for i in range(3)]
+
+
+def test_q_readings_of_the_imm_models():
+    dt, q, r = 0.5, 1e-2, 1.0
+    common = svk_tables.imm(("dr", "cv", "ca"), dt=dt, q=q, r=r, unmodelled_q="q")
+    assert all(np.allclose(f.Q, q * np.eye(3)) for f in common.filters)  # Q = q I on the common state
+    white = svk_tables.imm(("dr", "cv", "ca"), dt=dt, q=q, r=r, unmodelled_q=1.0, q_form="white-noise")
+    from vidtrack.filters.kalman import axis_process_noise
+
+    expected = axis_process_noise("cv", dt, q, 3)
+    expected[2, 2] = r  # CV's unmodelled acceleration
+    assert np.allclose(white.filters[1].Q, expected)
+
+
+def test_a_drift_model_without_the_velocity_makes_the_imm_cv_its_kalman_dr():
+    # Its 1-D density beats the CV model's 2-D one at every sample: mu_DR -> 1 and the IMM is the Kalman DR.
+    p, v = svk_tables.nonlinear_motion()
+    r = 100.0
+    z = np.stack([p, v], axis=1) + np.random.default_rng(3).normal(0.0, 10.0, size=(len(p), 2))
+    filt = svk_tables.imm(("dr", "cv"), dt=0.01, q=1e-2 * r, r=r, unmodelled_q=1.0, formulation="native-zero",
+                          pad_var=1.0, dr_velocity=False)
+    est = svk_tables.run_filter(filt, z, r)
+    dr = svk_tables.run_filter(svk_tables.kalman("dr", dt=0.01, q=1e-2 * r, r=r), z, r)
+    assert filt.filters[0].update(z[5]).innovation.shape == (1,)
+    rmse_imm, rmse_dr = np.sqrt(np.mean((est - p) ** 2)), np.sqrt(np.mean((dr - p) ** 2))
+    assert abs(rmse_imm - rmse_dr) < 0.01 * rmse_dr
+    assert filt.mu_[0] > 0.99
+
+
+def test_padding_variance_trades_the_ca_interval_against_the_velocity_jump():
+    # svk_tables docstring: a small variance of the missing derivatives loses the CA interval at R = 1000
+    # (CV keeps weight and drags CA's acceleration) and follows the jump to the CV interval slowly;
+    # a large one keeps the acceleration and follows the jump within a few samples, but is noisier at rest.
+    p, v = svk_tables.linear_motion()
+    rng = np.random.default_rng(0)
+    out = {}
+    for r in (100.0, 1000.0):
+        z = np.stack([p, v], axis=1) + rng.normal(0.0, np.sqrt(r), size=(len(p), 2))
+        for var in (0.01, 1.0):
+            filt = svk_tables.imm(("dr", "cv", "ca"), dt=0.5, q=1e-4 * r, r=r, unmodelled_q=1.0,
+                                  formulation="native-zero", pad_var=var)
+            out[r, var] = _interval_rmse(svk_tables.run_filter(filt, z, r), p)
+    (ca_small, _, cv_small), _ = out[1000.0, 0.01]
+    (ca_large, _, cv_large), _ = out[1000.0, 1.0]
+    assert ca_small > 1.5 * ca_large and cv_small > 3 * cv_large
+    assert out[100.0, 0.01][1][1] < out[100.0, 1.0][1][1]  # the drift interval's last 80 samples

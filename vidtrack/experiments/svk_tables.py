@@ -95,7 +95,7 @@ from typing import Callable
 import numpy as np
 
 from ..filters.imm import IMMEstimator, MixedOrderIMM, sticky_transition_matrix, uniform_transition_matrix
-from ..filters.kalman import MOTION_ORDERS, KalmanFilter, measured_axis_model
+from ..filters.kalman import MOTION_ORDERS, KalmanFilter, axis_process_noise, measured_axis_model
 from ..filters.svk import SupportVectorKalman
 from .paper import LEGEND, cell, claim, comparison, relative_difference
 
@@ -156,31 +156,69 @@ def kalman(model: str, *, dt: float, q: float, r: float, order: int | None = Non
     return KalmanFilter(*measured_axis_model(model, dt=dt, q=q, r=r, order=order, unmodelled_q=unmodelled_q))
 
 
-def imm(pool: tuple[str, ...], *, dt: float, q: float, r: float, unmodelled_q: float,
+class PositionOnlyKalman(KalmanFilter):
+    """A Kalman filter that folds in only the position of the ``[p, v]`` measurement.
+
+    The reading of an IMM whose drift model, having no velocity, is given
+    the position alone: its likelihood is a 1-D density, the other models'
+    2-D ones.
+    """
+
+    def update(self, z: np.ndarray, R: np.ndarray | None = None):
+        return super().update(np.asarray(z, dtype=float)[:1], None if R is None else np.asarray(R)[:1, :1])
+
+
+def imm_model(model: str, *, dt: float, q: float, r: float, order: int | None = None, unmodelled_q: float = 0.0,
+              q_form: str = "diag", dr_velocity: bool = True) -> KalmanFilter:
+    """One IMM model: :func:`kalman`, optionally with white-noise ``Q`` or a position-only drift model.
+
+    ``q_form="diag"``: ``Q = q I`` on the components the model carries (as
+    the Kalman rows); ``"white-noise"``: Bar-Shalom's discrete white-noise
+    ``Q = q G G'`` (:func:`vidtrack.filters.kalman.axis_process_noise`).
+    Unmodelled components get ``unmodelled_q`` either way.
+    ``dr_velocity=False``: the drift model sees the position measurement only.
+    """
+    native = MOTION_ORDERS[model]
+    position_only = model == "dr" and not dr_velocity
+    F, Q, H, R = measured_axis_model(model, dt=dt, q=q, r=r, order=order, unmodelled_q=unmodelled_q,
+                                     n_measured=1 if position_only else 2)
+    if q_form == "white-noise":
+        Q = axis_process_noise(model, dt, q, order)
+        Q[native:, native:] += unmodelled_q * np.eye(len(Q) - native)
+    elif q_form != "diag":
+        raise ValueError(f"q_form must be 'diag' or 'white-noise', got {q_form!r}")
+    return (PositionOnlyKalman if position_only else KalmanFilter)(F, Q, H, R)
+
+
+def imm(pool: tuple[str, ...], *, dt: float, q: float, r: float, unmodelled_q: float | str,
         formulation: str = "embedded", pad_var: float = 0.0, stay: float | None = None,
-        estimate: str = "combined", likelihood: str = "log"):
+        estimate: str = "combined", likelihood: str = "log", q_form: str = "diag", dr_velocity: bool = True):
     """IMM over ``pool``, uniform transition probabilities unless ``stay`` is given.
 
     ``formulation``: ``"embedded"`` -- every model in the common state, its
     unmodelled derivatives with process variance ``unmodelled_q * r`` (the
-    default); ``"native-zero"`` -- each model in its own state, a lower
-    model's missing derivatives augmented with mean 0 and variance
-    ``pad_var * r`` when mixed into a higher one; ``"native-own"`` -- augmented
-    with the receiving model's own estimate (see
+    default; ``unmodelled_q="q"``: the model's own ``q``, i.e. ``Q = q I``
+    on the common state for every model); ``"native-zero"`` -- each model in
+    its own state, a lower model's missing derivatives augmented with mean 0
+    and variance ``pad_var * r`` when mixed into a higher one;
+    ``"native-own"`` -- augmented with the receiving model's own estimate (see
     :func:`vidtrack.filters.imm.mixed_order_mix`).  ``estimate``: the combined
     estimate or the most likely mode's.  ``likelihood``: mode probabilities
     from log-likelihoods or from float64 / float32 densities (which underflow).
+    ``q_form`` and ``dr_velocity``: see :func:`imm_model`.
     """
     M = uniform_transition_matrix(len(pool)) if stay is None else sticky_transition_matrix(len(pool), stay)
+    opts = {"dt": dt, "q": q, "r": r, "q_form": q_form, "dr_velocity": dr_velocity}
     if formulation == "embedded":
         order = max(MOTION_ORDERS[m] for m in pool)
-        filters = [kalman(m, dt=dt, q=q, r=r, order=order, unmodelled_q=unmodelled_q * r) for m in pool]
+        uq = q if unmodelled_q == "q" else float(unmodelled_q) * r
+        filters = [imm_model(m, order=order, unmodelled_q=uq, **opts) for m in pool]
         if estimate == "combined" and likelihood == "log":
             return IMMEstimator(filters, M)
         # equal sizes: the same mixing as IMMEstimator
         return MixedOrderIMM(filters, M, estimate=estimate, likelihood=likelihood)
     pad = {"native-zero": "zero", "native-own": "own"}[formulation]
-    filters = [kalman(m, dt=dt, q=q, r=r) for m in pool]
+    filters = [imm_model(m, **opts) for m in pool]
     return MixedOrderIMM(filters, M, pad=pad, pad_var=pad_var * r, estimate=estimate, likelihood=likelihood)
 
 
@@ -280,6 +318,12 @@ IMM_VARIANTS = {
     "float32 lik.: native 0 (var 0)": {"likelihood": "float32", "formulation": "native-zero"},
     "float32 lik.: native 0 (var r)": {"likelihood": "float32", "formulation": "native-zero", "pad_var": 1.0},
     "float32 lik.: native, own estimate": {"likelihood": "float32", "formulation": "native-own"},
+    "embedded, Q = q I on the common state": {"unmodelled_q": "q"},
+    "embedded r, white-noise Q (DWNA/DWPA)": {"q_form": "white-noise"},
+    "native 0 (var r), DR sees position only": {"formulation": "native-zero", "pad_var": 1.0, "dr_velocity": False},
+    "native 0 (var 0.01 r)": {"formulation": "native-zero", "pad_var": 0.01},
+    "native 0 (var 0.1 r)": {"formulation": "native-zero", "pad_var": 0.1},
+    "float32 lik.: native 0 (var 0.1 r)": {"likelihood": "float32", "formulation": "native-zero", "pad_var": 0.1},
 }
 
 
