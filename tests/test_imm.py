@@ -126,3 +126,29 @@ def test_padding_variance_trades_the_ca_interval_against_the_velocity_jump():
     (ca_large, _, cv_large), _ = out[1000.0, 1.0]
     assert ca_small > 1.5 * ca_large and cv_small > 3 * cv_large
     assert out[100.0, 0.01][1][1] < out[100.0, 1.0][1][1]  # the drift interval's last 80 samples
+
+
+def test_carried_derivatives_and_underflow_leave_the_imm_cv_at_its_uniform_prior():
+    # svk_tables docstring, Table 3: DR embedded with identity rows (velocity carried, unused) and float64
+    # densities: on the sinusoids every density underflows, the mode probabilities stay at the uniform
+    # prior and the IMM CV lags more than its Kalman DR; with log-likelihoods the same IMM is below it.
+    p, v = svk_tables.nonlinear_motion()
+    r = 100.0
+    z = np.stack([p, v], axis=1) + np.random.default_rng(1).normal(0.0, 10.0, size=(len(p), 2))
+    out = {}
+    for likelihood in ("log", "float64"):
+        filt = svk_tables.imm(("dr", "cv"), dt=0.01, q=1e-2 * r, r=r, unmodelled_q=0.0, carry=True,
+                              likelihood=likelihood)
+        assert np.array_equal(filt.filters[0].F, np.eye(2))
+        filt.initialize(np.array(z[0]), r * np.eye(2))
+        est, mu_dr = [z[0, 0]], []
+        for k in range(1, len(z)):
+            filt.predict()
+            filt.update(z[k])
+            est.append(filt.x_[0])
+            mu_dr.append(filt.mu_[0])
+        out[likelihood] = float(np.sqrt(np.mean((np.array(est) - p) ** 2))), float(np.mean(mu_dr[:svk_tables.SEGMENT - 1]))
+    dr = svk_tables.run_filter(svk_tables.kalman("dr", dt=0.01, q=1e-2 * r, r=r), z, r)
+    rmse_dr = float(np.sqrt(np.mean((dr - p) ** 2)))
+    assert out["float64"][0] > 1.4 * rmse_dr and out["float64"][1] > 0.4
+    assert out["log"][0] < rmse_dr and out["log"][1] < 0.05

@@ -169,7 +169,7 @@ class PositionOnlyKalman(KalmanFilter):
 
 
 def imm_model(model: str, *, dt: float, q: float, r: float, order: int | None = None, unmodelled_q: float = 0.0,
-              q_form: str = "diag", dr_velocity: bool = True) -> KalmanFilter:
+              q_form: str = "diag", dr_velocity: bool = True, carry: bool = False) -> KalmanFilter:
     """One IMM model: :func:`kalman`, optionally with white-noise ``Q`` or a position-only drift model.
 
     ``q_form="diag"``: ``Q = q I`` on the components the model carries (as
@@ -177,6 +177,9 @@ def imm_model(model: str, *, dt: float, q: float, r: float, order: int | None = 
     ``Q = q G G'`` (:func:`vidtrack.filters.kalman.axis_process_noise`).
     Unmodelled components get ``unmodelled_q`` either way.
     ``dr_velocity=False``: the drift model sees the position measurement only.
+    ``carry=True`` (embedded in a larger ``order``): the derivatives the model
+    does not carry are kept by identity rows of ``F`` (carried along, unused)
+    instead of reset to 0 by zero rows.
     """
     native = MOTION_ORDERS[model]
     position_only = model == "dr" and not dr_velocity
@@ -187,12 +190,15 @@ def imm_model(model: str, *, dt: float, q: float, r: float, order: int | None = 
         Q[native:, native:] += unmodelled_q * np.eye(len(Q) - native)
     elif q_form != "diag":
         raise ValueError(f"q_form must be 'diag' or 'white-noise', got {q_form!r}")
+    if carry:
+        F[native:, native:] = np.eye(len(F) - native)
     return (PositionOnlyKalman if position_only else KalmanFilter)(F, Q, H, R)
 
 
 def imm(pool: tuple[str, ...], *, dt: float, q: float, r: float, unmodelled_q: float | str,
         formulation: str = "embedded", pad_var: float = 0.0, stay: float | None = None,
-        estimate: str = "combined", likelihood: str = "log", q_form: str = "diag", dr_velocity: bool = True):
+        estimate: str = "combined", likelihood: str = "log", q_form: str = "diag", dr_velocity: bool = True,
+        carry: bool = False):
     """IMM over ``pool``, uniform transition probabilities unless ``stay`` is given.
 
     ``formulation``: ``"embedded"`` -- every model in the common state, its
@@ -205,14 +211,14 @@ def imm(pool: tuple[str, ...], *, dt: float, q: float, r: float, unmodelled_q: f
     :func:`vidtrack.filters.imm.mixed_order_mix`).  ``estimate``: the combined
     estimate or the most likely mode's.  ``likelihood``: mode probabilities
     from log-likelihoods or from float64 / float32 densities (which underflow).
-    ``q_form`` and ``dr_velocity``: see :func:`imm_model`.
+    ``q_form``, ``dr_velocity`` and ``carry`` (embedded only): see :func:`imm_model`.
     """
     M = uniform_transition_matrix(len(pool)) if stay is None else sticky_transition_matrix(len(pool), stay)
     opts = {"dt": dt, "q": q, "r": r, "q_form": q_form, "dr_velocity": dr_velocity}
     if formulation == "embedded":
         order = max(MOTION_ORDERS[m] for m in pool)
         uq = q if unmodelled_q == "q" else float(unmodelled_q) * r
-        filters = [imm_model(m, order=order, unmodelled_q=uq, **opts) for m in pool]
+        filters = [imm_model(m, order=order, unmodelled_q=uq, carry=carry, **opts) for m in pool]
         if estimate == "combined" and likelihood == "log":
             return IMMEstimator(filters, M)
         # equal sizes: the same mixing as IMMEstimator
@@ -324,6 +330,9 @@ IMM_VARIANTS = {
     "native 0 (var 0.01 r)": {"formulation": "native-zero", "pad_var": 0.01},
     "native 0 (var 0.1 r)": {"formulation": "native-zero", "pad_var": 0.1},
     "float32 lik.: native 0 (var 0.1 r)": {"likelihood": "float32", "formulation": "native-zero", "pad_var": 0.1},
+    "embedded, carried derivatives (var 0)": {"unmodelled_q": 0.0, "carry": True},
+    "float64 lik.: embedded, carried (var 0)": {"likelihood": "float64", "unmodelled_q": 0.0, "carry": True},
+    "float32 lik.: carried (var 0.01 r)": {"likelihood": "float32", "unmodelled_q": 0.01, "carry": True},
 }
 
 
