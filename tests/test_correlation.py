@@ -4,7 +4,7 @@ import cv2
 import numpy as np
 import pytest
 
-from vidtrack.measure.correlation import (CorrelationFilter, CorrelationScoreMapMeasurer,
+from vidtrack.measure.correlation import (CorrelationFilter, CorrelationScoreMapMeasurer, constrained_filter,
                                           dcf_response, dcf_terms, fuse_peak, gaussian_response,
                                           peak_to_sidelobe, subpixel_peak)
 from vidtrack.measure.features import cell_features, orientation_cells
@@ -59,12 +59,17 @@ def test_dcf_pure_functions_reproduce_the_target_on_the_training_sample():
     assert peak_to_sidelobe(y, (0, 0), 2) > 10
 
 
+#: The plain DSST filter (mil's) and the score-map detector's: constrained (BACF) on a wider window, colour merged.
+FILTERS = {"dsst": {}, "detector": {"padding": 4.0, "window_cells": 40, "constrained": True, "colour_merge": 0.3}}
+
+
+@pytest.mark.parametrize("kind", sorted(FILTERS))
 @pytest.mark.parametrize("dx,dy", [(7, -4), (-11, 5), (0, 9)])
-def test_response_peaks_at_a_known_shift(dx, dy):
+def test_response_peaks_at_a_known_shift(dx, dy, kind):
     rng = np.random.default_rng(1)
     box = Box.from_center(150, 120, 32, 40)
     img, patch = scene(rng, box.center, box.size)
-    cf = CorrelationFilter()
+    cf = CorrelationFilter(**FILTERS[kind])
     cf.initialize(img, box)
     moved = cv2.warpAffine(img, np.float32([[1, 0, dx], [0, 1, dy]]), (320, 240), borderMode=cv2.BORDER_REFLECT)
     result = cf.detect(moved, box.center, box.size)
@@ -72,11 +77,12 @@ def test_response_peaks_at_a_known_shift(dx, dy):
     assert result.quality > 0.5
 
 
-def test_scale_filter_follows_a_1_5x_scale_change():
+@pytest.mark.parametrize("kind", sorted(FILTERS))
+def test_scale_filter_follows_a_1_5x_scale_change(kind):
     rng = np.random.default_rng(2)
     centre, size = np.array([160.0, 120.0]), np.array([32.0, 40.0])
     img, patch = scene(rng, centre, size)
-    cf = CorrelationFilter()
+    cf = CorrelationFilter(**FILTERS[kind])
     box = Box.from_center(*centre, *size)
     cf.initialize(img, box)
     for k in range(1, 31):                    # the target grows 1.5x over 30 frames
@@ -89,16 +95,72 @@ def test_scale_filter_follows_a_1_5x_scale_change():
     assert abs(box.h / (size[1] * 1.5) - 1.0) < 0.1
 
 
-def test_quality_falls_when_the_target_is_replaced_by_clutter():
+@pytest.mark.parametrize("kind", sorted(FILTERS))
+def test_quality_falls_when_the_target_is_replaced_by_clutter(kind):
     rng = np.random.default_rng(3)
     box = Box.from_center(150, 120, 32, 40)
     img, patch = scene(rng, box.center, box.size)
-    cf = CorrelationFilter()
+    cf = CorrelationFilter(**FILTERS[kind])
     cf.initialize(img, box)
     same = cf.detect(scene(rng, box.center, box.size, patch)[0], box.center, box.size)
     clutter = cf.detect(smooth_background(np.random.default_rng(11)), box.center, box.size)
     assert same.psr > 2 * clutter.psr
     assert same.quality > 0.8 and clutter.quality < 0.5
+
+
+def test_constrained_filter_solves_the_masked_ridge_regression():
+    """With a full mask ADMM converges to DSST's closed form; with a box mask the filter is zero outside it
+    and fits the training sample better than the closed-form filter cut to the box."""
+    rng = np.random.default_rng(6)
+    shape = (20, 24)
+    x = np.fft.rfft2(rng.normal(size=(*shape, 4)) * 0.1, axes=(0, 1))
+    y = gaussian_response(shape, 1.5)
+    yf = np.fft.rfft2(y)
+    num, den = dcf_terms(x, yf)
+    closed = dcf_response(num, den, x, 1e-2, shape)
+    state = None
+    for _ in range(30):                               # warm-started, as frame after frame
+        g, *state = constrained_filter(x, yf, np.ones(shape), shape, start=state)
+    full = np.fft.irfft2(np.sum(np.conj(g) * x, axis=2), s=shape)
+    assert np.allclose(full, closed, atol=0.02)
+    mask = np.zeros(shape)
+    mask[6:14, 8:16] = 1
+    state = None
+    for _ in range(30):
+        g, *state = constrained_filter(x, yf, mask, shape, start=state)
+    h = np.fft.irfft2(state[0], s=shape, axes=(0, 1))
+    assert np.abs(h[mask == 0]).max() < 1e-6 * np.abs(h).max()
+    masked = np.fft.irfft2(np.sum(np.conj(state[0]) * x, axis=2), s=shape)
+    cut = np.fft.rfft2(np.fft.irfft2(num / (den + 1e-2)[:, :, None], s=shape, axes=(0, 1)) * mask[:, :, None], axes=(0, 1))
+    cut_response = np.fft.irfft2(np.sum(np.conj(cut) * x, axis=2), s=shape)
+    assert np.sum((masked - y) ** 2) < 0.8 * np.sum((cut_response - y) ** 2)
+
+
+def test_constrained_filter_follows_a_small_target_the_static_background_outweighs():
+    """A thin target crossing a textured static background: the wide-window DSST filter learns the
+    background and stays behind; the constrained filter (BACF) follows to a pixel or two."""
+    noise = np.random.default_rng(3).random((40, 53, 3)).astype(np.float32)
+    background = np.clip(255 * cv2.resize(noise, (320, 240), interpolation=cv2.INTER_CUBIC), 0, 255).astype(np.uint8)
+    target = random_texture(np.random.default_rng(9), 36, 12)
+
+    def frame(x):
+        img = background.copy()
+        img[102:138, int(round(x)) - 6:int(round(x)) + 6] = target
+        return img
+
+    errors = {}
+    for constrained in (False, True):
+        cf = CorrelationFilter(padding=4.0, window_cells=40, scale_filter=False, constrained=constrained)
+        box = Box.from_center(80.0, 120.0, 12, 36)
+        cf.initialize(frame(80.0), box)
+        for k in range(1, 60):
+            x = 80.0 + 2.5 * k
+            found = cf.detect(frame(x), box.center, box.size).centre
+            box = Box.from_center(*found, 12, 36)
+            cf.update(frame(x), box)
+        errors[constrained] = float(np.linalg.norm(found - (x, 120.0)))
+    assert errors[True] < 2.0
+    assert errors[False] > 30.0
 
 
 def test_search_finds_the_target_far_outside_the_window():

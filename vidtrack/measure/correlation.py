@@ -29,6 +29,17 @@ same translation filter evaluated at a few scales per frame (SAMF's search,
 ``scale_factors`` with non-unit scales discounted by ``scale_penalty``), is
 kept as an option.
 
+Two departures from DSST, both switchable and both on in the score-map
+detector (:class:`CorrelationScoreMapMeasurer`, not in ``mil``'s filter):
+
+* ``constrained``: the filter is restricted to the target's own cells and
+  learned by ADMM on every shift of the window (:func:`constrained_filter`,
+  Kiani Galoogahi et al., "Learning Background-Aware Correlation Filters
+  for Visual Tracking", ICCV 2017), so the static background a wide window
+  holds cannot outvote a small moving target;
+* ``colour_merge``: the response is merged with the colour-histogram score
+  of Staple (:mod:`vidtrack.measure.colour_model`).
+
 The quality of a response is a peak-to-sidelobe ratio (Bolme et al.):
 ``(peak - mean) / std`` of the response outside a small area around the
 peak, mapped linearly from ``psr_low`` (no target: 0) to ``psr_high`` (1);
@@ -43,8 +54,10 @@ from dataclasses import dataclass, replace
 
 import cv2
 import numpy as np
+from scipy import fft
 
 from ..types import Box, Estimate, Frame, ScoreMap
+from .colour_model import ColourHistogramModel
 from .features import cell_features
 from .image import cut_window
 
@@ -82,7 +95,72 @@ def dcf_response(numerator: np.ndarray, denominator: np.ndarray, features_fft: n
                  shape: tuple[int, int]) -> np.ndarray:
     """``y = IFFT(sum_l conj(A_l) Z_l / (B + lambda))`` (DSST eq. 6), real ``(h, w)`` with the zero shift at ``(0, 0)``."""
     spectrum = np.sum(np.conj(numerator) * features_fft, axis=2) / (denominator + lam)
-    return np.fft.irfft2(spectrum, s=shape)
+    return fft.irfft2(spectrum, s=shape)
+
+
+def constrained_filter(model_fft: np.ndarray, target_fft: np.ndarray, mask: np.ndarray, shape: tuple[int, int], *,
+                       lam: float = 1e-2, iterations: int = 2, mu: float = 0.01, mu_step: float = 1.0,
+                       mu_max: float = 1e4, start: tuple[np.ndarray, np.ndarray] | None = None
+                       ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """A correlation filter that is zero outside ``mask``, learned by ADMM (Kiani Galoogahi et al., BACF, eqs. 5-13).
+
+    Background-aware correlation filters train on every shift of the whole
+    window, background included, but the filter itself covers only the
+    target's cells (``mask``), so the static background a large window holds
+    cannot outvote a small moving target.  The problem
+
+        min_g 1/2 || y - sum_l conj(g_l) * x_l ||^2 + lam/2 || h ||^2   s.t.  g_l = FFT(mask * h_l)
+
+    is solved by ADMM over the full-size filter ``g`` (closed form per
+    frequency by Sherman-Morrison, since the model ``x`` is one sample:
+    eq. 11), the masked filter ``h`` (eq. 12) and the Lagrange multiplier
+    ``zeta`` (eq. 13), with penalty ``mu`` (relative to the model's mean
+    spectral energy, so the result does not depend on the features' scale)
+    multiplied by ``mu_step`` per iteration up to ``mu_max`` times its start.
+    Departure from BACF, which restarts from zero every frame with a fast
+    growing penalty: ADMM is warm-started from the previous frame's ``h``
+    and ``zeta`` (``start``) at a constant penalty, so its few iterations a
+    frame keep converging while the model drifts slowly.
+
+    Parameters
+    ----------
+    model_fft : (h, w', d) complex
+        ``rfft2`` of the (running-average) windowed features.
+    target_fft : (h, w') complex
+        ``rfft2`` of the desired response ``y``.
+    mask : (h, w) bool or float
+        Where the filter may be non-zero: the target's cells at the window's centre.
+    shape
+        ``(h, w)`` of the spatial window.
+
+    start
+        ``(h_fft, zeta)`` of a previous call to continue from (None: zeros).
+
+    Returns
+    -------
+    ``(G, h_fft, zeta)``, each (h, w', d) complex: ``G`` such that the
+    response to ``z`` is ``irfft2(sum_l conj(G_l) Z_l)``, and the state to continue from.
+    """
+    T = float(shape[0] * shape[1])
+    x = model_fft
+    y = target_fft[:, :, None]
+    s_xx = np.sum(x.real ** 2 + x.imag ** 2, axis=2, keepdims=True)
+    mu = mu * float(np.mean(s_xx)) / T     # the penalty relative to the data's energy: scale-free
+    mu_max = mu_max * mu
+    g = np.zeros_like(x)
+    h, zeta = (np.zeros_like(x), np.zeros_like(x)) if start is None else start
+    m = mask.astype(np.float32)[:, :, None]
+    for _ in range(iterations):
+        b = s_xx + T * mu
+        s_zx = np.sum(np.conj(x) * zeta, axis=2, keepdims=True)
+        s_hx = np.sum(np.conj(x) * h, axis=2, keepdims=True)
+        g = ((y * x) / (T * mu) - zeta / mu + h
+             - x * ((s_xx * y) / (T * mu) - s_zx / mu + s_hx) / b)                           # eq. 11
+        spatial = fft.irfft2(mu * g + zeta, s=shape, axes=(0, 1)) * (T / (mu * T + lam))  # eq. 12
+        h = fft.rfft2(spatial * m, axes=(0, 1))
+        zeta = zeta + mu * (g - h)                                                           # eq. 13
+        mu = min(mu_step * mu, mu_max)
+    return g, h, zeta
 
 
 def peak_to_sidelobe(response: np.ndarray, peak_index: tuple[int, int], exclude: int) -> float:
@@ -184,7 +262,7 @@ class ScaleFilter:
         self.exponents_ = np.arange(self.n_scales) - self.n_scales // 2
         self.factors_ = self.step ** self.exponents_.astype(float)
         sigma = self.n_scales / np.sqrt(33.0) * self.sigma_factor
-        self.target_fft_ = np.fft.fft(np.exp(-0.5 * self.exponents_ ** 2 / sigma ** 2))
+        self.target_fft_ = fft.fft(np.exp(-0.5 * self.exponents_ ** 2 / sigma ** 2))
         self.window_ = np.hanning(self.n_scales + 2)[1:-1]
         self.numerator_ = self.denominator_ = None
         self.last_sample_fft_ = None
@@ -208,16 +286,16 @@ class ScaleFilter:
         f = self.last_sample_fft_
         self.last_sample_fft_ = None
         if f is None:
-            f = np.fft.fft(self.sample(image, box.center, box.size), axis=0)
+            f = fft.fft(self.sample(image, box.center, box.size), axis=0)
         num = np.conj(self.target_fft_)[:, None] * f              # conj(G) F_l
         den = np.sum(f.real ** 2 + f.imag ** 2, axis=1)            # sum_l |F_l|^2
         self.numerator_, self.denominator_ = running_average((self.numerator_, self.denominator_), (num, den), rate)
 
     def estimate(self, image: np.ndarray, centre, size) -> float:
         """The scale change of the target around ``centre``: the factor of the best-responding scale."""
-        z = np.fft.fft(self.sample(image, centre, size), axis=0)
+        z = fft.fft(self.sample(image, centre, size), axis=0)
         self.last_sample_fft_ = z
-        response = np.real(np.fft.ifft(np.sum(np.conj(self.numerator_) * z, axis=1) / (self.denominator_ + self.lam)))
+        response = np.real(fft.ifft(np.sum(np.conj(self.numerator_) * z, axis=1) / (self.denominator_ + self.lam)))
         k = int(np.argmax(response))
         exponent = float(self.exponents_[k])
         if 0 < k < len(response) - 1:   # sub-step: the parabola through the peak and its neighbours
@@ -270,6 +348,21 @@ class CorrelationFilter:
         (:meth:`spatial_filter`), so a window whose context still matches
         after the target has gone scores low; ``"full"``: the PSR of the
         full response.
+    colour_merge
+        Staple's ``alpha``: the response located is ``(1 - alpha)`` times the
+        filter's plus ``alpha`` times the colour-histogram score of
+        :class:`~vidtrack.measure.colour_model.ColourHistogramModel` (0: the
+        filter alone).  The quality stays the filter's.
+    colour_bins, colour_rate
+        Levels per channel and learning rate of the colour histograms.
+    constrained
+        Learn the filter restricted to the target's cells by ADMM
+        (:func:`constrained_filter`, BACF) from a running average of the
+        window's features (rate ``learning_rate``), instead of DSST's
+        running numerator and denominator.
+    admm_iterations, admm_mu
+        ADMM iterations per frame (five times as many on the first) and
+        relative penalty of the constrained filter.
     """
 
     padding: float = 2.5
@@ -286,6 +379,12 @@ class CorrelationFilter:
     colour: bool = True
     exclude_cells: int = 2
     quality_from: str = "target"
+    colour_merge: float = 0.0
+    colour_bins: int = 32
+    colour_rate: float = 0.04
+    constrained: bool = False
+    admm_iterations: int = 2
+    admm_mu: float = 0.01
 
     # -- geometry -----------------------------------------------------
 
@@ -308,10 +407,13 @@ class CorrelationFilter:
         """The window ``(w, h)`` in frame pixels around a box of ``box_size``."""
         return self.cell_step(box_size) * np.array([self.shape_[1], self.shape_[0]], float)
 
-    def features(self, image: np.ndarray, centre, window: np.ndarray) -> np.ndarray:
-        """Windowed cell features ``(h, w, d)`` of the ``window`` around ``centre``."""
-        patch = cut_window(image, centre, window, self.out_size_)
+    def features(self, patch: np.ndarray) -> np.ndarray:
+        """Windowed cell features ``(h, w, d)`` of a window resampled to ``out_size_``."""
         return cell_features(patch, cell=self.cell, colour=self.colour) * self.cos_[:, :, None]
+
+    def patch(self, image: np.ndarray, centre, box_size) -> np.ndarray:
+        """The window around ``centre`` for a box of ``box_size``, resampled to ``out_size_`` pixels."""
+        return cut_window(image, centre, self.window_size(box_size), self.out_size_)
 
     # -- protocol -----------------------------------------------------
 
@@ -321,9 +423,11 @@ class CorrelationFilter:
         self.cos_ = cosine_window(self.shape_).astype(np.float32)
         box_cells = box.scale / self.cell_step(box.size)
         self.box_cells_ = box.size / self.cell_step(box.size)     # the box's (w, h) in cells
-        self.target_fft_ = np.fft.rfft2(gaussian_response(self.shape_, self.sigma_factor * box_cells))
-        self.numerator_ = self.denominator_ = None
+        self.target_fft_ = fft.rfft2(gaussian_response(self.shape_, self.sigma_factor * box_cells).astype(np.float32))
+        self.numerator_ = self.denominator_ = self.model_fft_ = self.admm_state_ = None
         self.scale_ = ScaleFilter(colour=self.colour) if self.scale_filter else None
+        self.colour_model_ = (ColourHistogramModel(bins=self.colour_bins, learning_rate=self.colour_rate)
+                              if self.colour_merge > 0 else None)
         if self.scale_ is not None:
             self.scale_.initialize(image, box)
         self.update(image, box, rate=1.0)
@@ -333,17 +437,38 @@ class CorrelationFilter:
         rate = self.learning_rate if rate is None else rate
         if self.scale_ is not None and self.numerator_ is not None:
             self.scale_.update(image, box, rate=None if rate < 1.0 else rate)
-        f = np.fft.rfft2(self.features(image, box.center, self.window_size(box.size)), axes=(0, 1))
-        num, den = dcf_terms(f, self.target_fft_)
-        self.numerator_, self.denominator_ = running_average((self.numerator_, self.denominator_), (num, den), rate)
+        patch = self.patch(image, box.center, box.size)
+        if self.colour_model_ is not None:
+            self.colour_model_.update(patch, self.box_cells_ * self.cell, rate=None if rate < 1.0 else rate)
+        f = fft.rfft2(self.features(patch), axes=(0, 1))
+        if self.constrained:
+            self.model_fft_ = running_average((self.model_fft_,), (f,), rate)[0]
+            first = self.admm_state_ is None
+            self.filter_fft_, *state = constrained_filter(
+                self.model_fft_, self.target_fft_, self.target_mask(), self.shape_, lam=self.lam,
+                iterations=self.admm_iterations * (5 if first else 1), mu=self.admm_mu, start=self.admm_state_)
+            self.admm_state_ = tuple(state)
+        else:
+            num, den = dcf_terms(f, self.target_fft_)
+            self.numerator_, self.denominator_ = running_average((self.numerator_, self.denominator_), (num, den), rate)
+            self.filter_fft_ = self.numerator_ / (self.denominator_ + self.lam)[:, :, None]
         if self.quality_from == "target":
-            self.target_filter_fft_ = np.fft.rfft2(self.spatial_filter(target_only=True), axes=(0, 1))
+            self.target_filter_fft_ = fft.rfft2(self.spatial_filter(target_only=True), axes=(0, 1))
 
     def respond(self, image: np.ndarray, centre, box_size, scale: float = 1.0) -> tuple[np.ndarray, np.ndarray]:
-        """The circular response of the window of ``box_size * scale`` around ``centre``, and the window's spectrum."""
-        window = self.window_size(np.asarray(box_size, float) * scale)
-        z = np.fft.rfft2(self.features(image, centre, window), axes=(0, 1))
-        return dcf_response(self.numerator_, self.denominator_, z, self.lam, self.shape_), z
+        """The circular response of the window of ``box_size * scale`` around ``centre``, and the window's spectrum.
+
+        With ``colour_merge`` the response is Staple's merge (eq. 22) of the
+        filter's and the colour histograms' (at the same shifts).
+        """
+        patch = self.patch(image, centre, np.asarray(box_size, float) * scale)
+        z = fft.rfft2(self.features(patch), axes=(0, 1))
+        response = fft.irfft2(np.sum(np.conj(self.filter_fft_) * z, axis=2), s=self.shape_)   # DSST eq. 6
+        if self.colour_model_ is not None:
+            colour = self.colour_model_.response(patch, self.box_cells_ * self.cell, self.shape_, self.cell)
+            a = self.colour_merge
+            response = fft.ifftshift((1.0 - a) * fft.fftshift(response) + a * colour)
+        return response, z
 
     def detect(self, image: np.ndarray, centre, box_size, *, scales: tuple[float, ...] | None = None
                ) -> CorrelationResult:
@@ -364,12 +489,12 @@ class CorrelationFilter:
         size = np.asarray(box_size, float) * s
         measured = response
         if self.quality_from == "target":   # is the target itself there? (the context may match without it)
-            measured = np.fft.irfft2(np.sum(np.conj(self.target_filter_fft_) * z, axis=2), s=self.shape_)
+            measured = fft.irfft2(np.sum(np.conj(self.target_filter_fft_) * z, axis=2), s=self.shape_)
         psr = peak_to_sidelobe(measured, index, self.exclude_cells)
         quality = float(np.clip((psr - self.psr_low) / (self.psr_high - self.psr_low), 0.0, 1.0))
         return CorrelationResult(window_centre=np.asarray(centre, float),
                                  centre=found, size=size,
-                                 response=np.fft.fftshift(response), step=step, scale=float(s), peak=peak,
+                                 response=fft.fftshift(response), step=step, scale=float(s), peak=peak,
                                  psr=psr, quality=quality)
 
     def spatial_filter(self, *, target_only: bool = True) -> np.ndarray:
@@ -379,15 +504,18 @@ class CorrelationFilter:
         re-detection, where the context the filter learned (a static
         background) would otherwise fire at the place the target left.
         """
-        h = np.fft.irfft2(self.numerator_ / (self.denominator_ + self.lam)[:, :, None],
-                          s=self.shape_, axes=(0, 1)).astype(np.float32)
+        h = fft.irfft2(self.filter_fft_, s=self.shape_, axes=(0, 1)).astype(np.float32)
         if target_only:
-            hc, wc = self.shape_
-            half = np.ceil(self.box_cells_ / 2.0).astype(int)
-            mask = np.zeros((hc, wc), np.float32)
-            mask[max(hc // 2 - half[1], 0):hc // 2 + half[1] + 1, max(wc // 2 - half[0], 0):wc // 2 + half[0] + 1] = 1
-            h *= mask[:, :, None]
+            h *= self.target_mask()[:, :, None]
         return h
+
+    def target_mask(self) -> np.ndarray:
+        """``(h, w)`` float32: 1 on the box's own cells (rounded out) at the window's centre, 0 elsewhere."""
+        hc, wc = self.shape_
+        half = np.ceil(self.box_cells_ / 2.0).astype(int)
+        mask = np.zeros((hc, wc), np.float32)
+        mask[max(hc // 2 - half[1], 0):hc // 2 + half[1] + 1, max(wc // 2 - half[0], 0):wc // 2 + half[0] + 1] = 1
+        return mask
 
     def search(self, image: np.ndarray, centre, region_size, box_size) -> CorrelationResult:
         """Re-detection over a large region: the filter slid over every cell of ``region_size`` around ``centre``.
@@ -484,10 +612,18 @@ class CorrelationScoreMapMeasurer:
         The box size stays within these multiples of the initial size.
     scale_filter
         Estimate the size with the :class:`ScaleFilter` (off: the init box size throughout).
+    colour_merge, constrained, admm_iterations
+        Of the :class:`CorrelationFilter`: Staple's merge of the colour-histogram score, the BACF constraint.
+        The defaults (window 5 boxes of 40 cells, constrained, colour 0.3)
+        were chosen on the tune split with ``pf`` at seeds 0-2: mean AUC
+        0.615 against 0.577 for the DSST filter of 3.5 boxes and 32 cells,
+        0.554 constrained without colour, 0.594 with colour 0.2, 0.600 with 0.45.
+    filter_options
+        Further :class:`CorrelationFilter` options.
     """
 
-    padding: float = 2.5
-    window_cells: int = 32
+    padding: float = 4.0
+    window_cells: int = 40
     learning_rate: float = 0.02
     scale_factors: tuple[float, ...] = (1.0,)
     psr_low: float = 3.0
@@ -496,11 +632,17 @@ class CorrelationScoreMapMeasurer:
     lost_margin: float = 1.5
     size_limits: tuple[float, float] = (0.2, 5.0)
     scale_filter: bool = True
+    colour_merge: float = 0.3
+    constrained: bool = True
+    admm_iterations: int = 2
+    filter_options: dict | None = None
 
     def initialize(self, frame: Frame, box: Box) -> None:
         self.filter_ = CorrelationFilter(padding=self.padding, window_cells=self.window_cells,
                                          learning_rate=self.learning_rate, scale_factors=self.scale_factors,
-                                         psr_low=self.psr_low, psr_high=self.psr_high, scale_filter=self.scale_filter)
+                                         psr_low=self.psr_low, psr_high=self.psr_high, scale_filter=self.scale_filter,
+                                         colour_merge=self.colour_merge, constrained=self.constrained, admm_iterations=self.admm_iterations,
+                                         **(self.filter_options or {}))
         self.filter_.initialize(frame.image, box)
         self.init_size_ = box.size.copy()
         self.last_quality_ = 1.0

@@ -95,6 +95,8 @@ class DetectionMeasurer:
         At most this many detections per frame.
     scale_filter
         The ``cf`` detector estimates the box size (off: the init size).
+    cf_options
+        Further options of the ``cf`` detector (:class:`~vidtrack.measure.correlation.CorrelationScoreMapMeasurer`).
     """
 
     detector: str = "cf"
@@ -104,9 +106,11 @@ class DetectionMeasurer:
     min_score: float = 0.4
     max_detections: int = 10
     scale_filter: bool = True
+    cf_options: dict | None = None
 
     def initialize(self, frame: Frame, box: Box) -> None:
-        options = {"margin": self.margin} if self.detector == "ncc" else {"scale_filter": self.scale_filter}
+        options = ({"margin": self.margin} if self.detector == "ncc"
+                   else {"scale_filter": self.scale_filter, **(self.cf_options or {})})
         self.detector_ = make_detector(self.detector, **options)
         self.detector_.initialize(frame, box)
 

@@ -1,0 +1,118 @@
+"""A colour-histogram object model whose per-pixel score complements the correlation filter.
+
+Staple (Bertinetto et al., "Staple: Complementary Learners for Real-Time
+Tracking", CVPR 2016, sec. 4-5) pairs a correlation filter, which is
+precise but relies on the target's rigid layout, with a model that ignores
+layout: histograms of the colours of the object ``O`` and of the
+background ``B`` around it.  Every pixel ``u`` with colour bin ``k(u)`` gets
+the probability that it belongs to the object (Staple eq. 14)::
+
+    beta(u) = rho_O(k) / (rho_O(k) + rho_B(k) + epsilon)
+
+with ``rho_O``, ``rho_B`` the histograms normalised by the number of pixels
+in each region, and the score of a box at position ``p`` is the mean of
+``beta`` over the box (eq. 12, computed with a box filter, i.e. an integral
+image).  The two responses are merged linearly (eq. 22)::
+
+    y = (1 - alpha) y_cf + alpha y_hist
+
+The histograms are running averages over the frames the tracker learns from
+(learning rate ``eta_hist``, eq. 21).  Bins are joint over the three BGR
+channels, ``bins`` levels each (Staple: 32).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import cv2
+import numpy as np
+
+
+def colour_bins(patch: np.ndarray, bins: int) -> np.ndarray:
+    """Joint colour-bin index ``(H, W)`` int of a BGR (or grey) uint8 patch, ``bins`` levels per channel."""
+    shift = int(round(np.log2(256 // bins)))
+    q = (patch >> shift).astype(np.int32)
+    if q.ndim == 2:
+        return q * (bins * bins + bins + 1)   # grey: the diagonal of the colour cube
+    return (q[:, :, 0] * bins + q[:, :, 1]) * bins + q[:, :, 2]
+
+
+def box_masks(shape: tuple[int, int], box_size, *, inner: float = 0.1, context: float = 1.0
+              ) -> tuple[np.ndarray, np.ndarray]:
+    """Object and background masks of a patch ``shape = (H, W)`` whose centre holds a box of ``box_size = (w, h)`` px.
+
+    The object region is the box shrunk by ``inner`` of its side on each side
+    (so its border pixels, often background, stay out); the background is
+    the box grown by ``context`` of its side on each side, less the box.
+    """
+    H, W = shape
+    cx, cy = W / 2.0, H / 2.0
+    bw, bh = float(box_size[0]), float(box_size[1])
+
+    def rect(w: float, h: float) -> np.ndarray:
+        m = np.zeros((H, W), bool)
+        x0, x1 = int(round(max(cx - w / 2.0, 0))), int(round(min(cx + w / 2.0, W)))
+        y0, y1 = int(round(max(cy - h / 2.0, 0))), int(round(min(cy + h / 2.0, H)))
+        m[y0:y1, x0:x1] = True
+        return m
+
+    obj = rect(bw * (1.0 - 2.0 * inner), bh * (1.0 - 2.0 * inner))
+    bg = rect(bw * (1.0 + 2.0 * context), bh * (1.0 + 2.0 * context)) & ~rect(bw, bh)
+    return obj, bg
+
+
+@dataclass
+class ColourHistogramModel:
+    """Staple's object/background colour histograms; see the module docstring.
+
+    Parameters
+    ----------
+    bins
+        Levels per BGR channel (a power of two; the histograms have ``bins ** 3`` entries).
+    learning_rate
+        ``eta_hist`` of the running histograms.
+    inner, context
+        Shape of the object and background regions (:func:`box_masks`).
+    """
+
+    bins: int = 32
+    learning_rate: float = 0.04
+    inner: float = 0.1
+    context: float = 1.0
+
+    def __post_init__(self) -> None:
+        self.object_ = self.background_ = None
+
+    def update(self, patch: np.ndarray, box_size, *, rate: float | None = None) -> None:
+        """Learn from a patch whose centre holds the target box of ``box_size`` patch pixels."""
+        rate = self.learning_rate if rate is None else rate
+        index = colour_bins(patch, self.bins)
+        obj, bg = box_masks(index.shape, box_size, inner=self.inner, context=self.context)
+        n = self.bins ** 3
+        new_obj = np.bincount(index[obj], minlength=n) / max(int(obj.sum()), 1)
+        new_bg = np.bincount(index[bg], minlength=n) / max(int(bg.sum()), 1)
+        if self.object_ is None or rate >= 1.0:
+            self.object_, self.background_ = new_obj, new_bg
+        else:
+            self.object_ = (1.0 - rate) * self.object_ + rate * new_obj
+            self.background_ = (1.0 - rate) * self.background_ + rate * new_bg
+        self.table_ = (self.object_ / (self.object_ + self.background_ + 1e-9)).astype(np.float32)   # eq. 14
+
+    def likelihood(self, patch: np.ndarray) -> np.ndarray:
+        """``beta(u)``: the object probability of every pixel, ``(H, W)`` float32 (eq. 14)."""
+        return self.table_[colour_bins(patch, self.bins)]
+
+    def response(self, patch: np.ndarray, box_size, shape: tuple[int, int], step: float) -> np.ndarray:
+        """Mean ``beta`` over the box at each of ``shape = (h, w)`` positions ``step`` px apart, centred (eq. 12).
+
+        Position ``(i, j)`` is the box centred ``((j - w // 2) step, (i - h // 2) step)``
+        from the patch centre: the layout of a shifted correlation response.
+        """
+        k = (max(int(round(box_size[0])), 1), max(int(round(box_size[1])), 1))
+        mean = cv2.boxFilter(self.likelihood(patch), -1, k, normalize=True, borderType=cv2.BORDER_REPLICATE)
+        H, W = mean.shape
+        h, w = shape
+        rows = np.clip(np.round(H / 2.0 + (np.arange(h) - h // 2) * step).astype(int), 0, H - 1)
+        cols = np.clip(np.round(W / 2.0 + (np.arange(w) - w // 2) * step).astype(int), 0, W - 1)
+        return mean[np.ix_(rows, cols)]
