@@ -30,12 +30,15 @@ def _builder(make_filter, default_detector: str = "cf"):
 
 
 RECIPES = {
+    # nh and bayes on the correlation-filter map: more actions, a shorter regret memory, wider
+    # re-sampling; a wider random walk (chosen on the tune split; see vidtrack.filters.score_trackers)
     "nh": Recipe("SMC NormalHedge on a sliding-detector score map (Chaudhuri, Freund & Hsu 2010)",
-                 _builder(lambda rng: NormalHedgeBoxFilter(rng=rng)), options=DETECTOR_OPTION),
+                 _builder(lambda rng: NormalHedgeBoxFilter(n_actions=300, alpha=0.6, sigma_star=0.35, rng=rng)),
+                 options=DETECTOR_OPTION),
     "pf": Recipe("SIR particle filter on a sliding-detector score map (NormalHedge paper's comparator)",
                  _builder(lambda rng: ParticleBoxFilter(rng=rng)), options=DETECTOR_OPTION),
     "bayes": Recipe("exact grid Bayes filter on a sliding-detector score map (NormalHedge paper's comparator)",
-                    _builder(lambda rng: GridBayesBoxFilter(rng=rng)), options=DETECTOR_OPTION),
+                    _builder(lambda rng: GridBayesBoxFilter(sigma_d=0.15, rng=rng)), options=DETECTOR_OPTION),
     "nh-face": Recipe("nh on OpenCV's Haar face-detector score map (the seed's motivating example)",
                       _builder(lambda rng: NormalHedgeBoxFilter(rng=rng), "face"), options=DETECTOR_OPTION),
     "pf-face": Recipe("pf on OpenCV's Haar face-detector score map",
