@@ -27,7 +27,6 @@ from __future__ import annotations
 from typing import Callable
 
 import numpy as np
-from scipy.special import logsumexp
 
 #: ``losses(states) -> (..., N)`` per-action observation loss ``l_o(x_i, M_t)``.
 LossFn = Callable[[np.ndarray], np.ndarray]
@@ -36,6 +35,20 @@ DynamicsFn = Callable[[np.ndarray], np.ndarray]
 
 
 # --------------------------------------------------------------- NormalHedge
+
+
+def logsumexp(a: np.ndarray, axis: int = -1, keepdims: bool = False) -> np.ndarray:
+    """``log sum exp(a)`` along ``axis``, shifted by the maximum (``-inf`` where every entry is ``-inf``).
+
+    The same as :func:`scipy.special.logsumexp` for real input without
+    weights, without its per-call overhead (NormalHedge's Newton iterations
+    call it several times per frame).
+    """
+    m = np.max(a, axis=axis, keepdims=True)
+    m = np.where(np.isfinite(m), m, 0.0)
+    with np.errstate(divide="ignore"):
+        out = np.log(np.sum(np.exp(a - m), axis=axis, keepdims=True)) + m
+    return out if keepdims else np.squeeze(out, axis=axis)
 
 
 def normalhedge_log_c(regrets: np.ndarray, *, max_iter: int = 200, tol: float = 1e-15) -> np.ndarray:
