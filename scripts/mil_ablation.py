@@ -38,6 +38,8 @@ CONFIGS = {
     "default - re-detection": dict(redetect=False),
     "default - lost bag": dict(lost_bag=False),
     "default, ncc refinement instead of cf": dict(refine="ncc"),
+    "default - cf constraint (DSST filter)": dict(cf_constrained=False),
+    "default - cf colour merge": dict(cf_colour_merge=0.0),
     "default": dict(),
 }
 

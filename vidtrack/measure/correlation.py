@@ -132,7 +132,6 @@ def constrained_filter(model_fft: np.ndarray, target_fft: np.ndarray, mask: np.n
         Where the filter may be non-zero: the target's cells at the window's centre.
     shape
         ``(h, w)`` of the spatial window.
-
     start
         ``(h_fft, zeta)`` of a previous call to continue from (None: zeros).
 
