@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 
 from vidtrack.measure.correlation import (CorrelationFilter, CorrelationScoreMapMeasurer, constrained_filter,
-                                          dcf_response, dcf_terms, fuse_peak, gaussian_response,
+                                          correlation_response, dcf_terms, fuse_peak, gaussian_response,
                                           peak_to_sidelobe, subpixel_peak)
 from vidtrack.measure.features import cell_features, orientation_cells
 from vidtrack.types import Box, Estimate, Frame
@@ -52,7 +52,7 @@ def test_dcf_pure_functions_reproduce_the_target_on_the_training_sample():
     f = np.fft.rfft2(rng.normal(size=(*shape, 3)), axes=(0, 1))
     g = np.fft.rfft2(gaussian_response(shape, 2.0))
     num, den = dcf_terms(f, g)
-    y = dcf_response(num, den, f, 1e-6, shape)
+    y = correlation_response(num / (den + 1e-6)[:, :, None], f, shape)
     assert np.allclose(y, gaussian_response(shape, 2.0), atol=1e-4)   # eq. 6 of the training sample = g
     shift, index, peak = subpixel_peak(np.roll(y, (3, -2), axis=(0, 1)))
     assert index == (3, shape[1] - 2) and np.allclose(shift, [-2, 3], atol=0.05)
@@ -117,11 +117,11 @@ def test_constrained_filter_solves_the_masked_ridge_regression():
     y = gaussian_response(shape, 1.5)
     yf = np.fft.rfft2(y)
     num, den = dcf_terms(x, yf)
-    closed = dcf_response(num, den, x, 1e-2, shape)
+    closed = correlation_response(num / (den + 1e-2)[:, :, None], x, shape)
     state = None
     for _ in range(30):                               # warm-started, as frame after frame
         g, *state = constrained_filter(x, yf, np.ones(shape), shape, start=state)
-    full = np.fft.irfft2(np.sum(np.conj(g) * x, axis=2), s=shape)
+    full = correlation_response(g, x, shape)
     assert np.allclose(full, closed, atol=0.02)
     mask = np.zeros(shape)
     mask[6:14, 8:16] = 1
@@ -130,9 +130,9 @@ def test_constrained_filter_solves_the_masked_ridge_regression():
         g, *state = constrained_filter(x, yf, mask, shape, start=state)
     h = np.fft.irfft2(state[0], s=shape, axes=(0, 1))
     assert np.abs(h[mask == 0]).max() < 1e-6 * np.abs(h).max()
-    masked = np.fft.irfft2(np.sum(np.conj(state[0]) * x, axis=2), s=shape)
+    masked = correlation_response(state[0], x, shape)
     cut = np.fft.rfft2(np.fft.irfft2(num / (den + 1e-2)[:, :, None], s=shape, axes=(0, 1)) * mask[:, :, None], axes=(0, 1))
-    cut_response = np.fft.irfft2(np.sum(np.conj(cut) * x, axis=2), s=shape)
+    cut_response = correlation_response(cut, x, shape)
     assert np.sum((masked - y) ** 2) < 0.8 * np.sum((cut_response - y) ** 2)
 
 

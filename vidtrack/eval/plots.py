@@ -42,6 +42,17 @@ def _mpl_colour(colours, name):
     return None if not colours or name not in colours else tuple(c / 255 for c in colours[name])
 
 
+def _write(fig, path: Path) -> Path:
+    """Lay out and write ``fig`` to ``path`` (its folder made); an unwritable path is an :class:`OutputError`."""
+    try:
+        fig.tight_layout()
+        path.parent.mkdir(parents=True, exist_ok=True)
+        fig.savefig(path)
+    except OSError as exc:
+        raise OutputError(f"cannot write {path}: {exc.strerror or exc}") from None
+    return path
+
+
 def _plot(path: Path, x: np.ndarray, series: dict[str, np.ndarray], *, title: str, xlabel: str,
           ylabel: str, label, colours=None) -> Path:
     import matplotlib
@@ -58,14 +69,9 @@ def _plot(path: Path, x: np.ndarray, series: dict[str, np.ndarray], *, title: st
         ax.grid(True, alpha=0.3)
         if series:
             ax.legend(loc="best", fontsize=8)
-        fig.tight_layout()
-        path.parent.mkdir(parents=True, exist_ok=True)
-        fig.savefig(path)
-    except OSError as exc:
-        raise OutputError(f"cannot write {path}: {exc.strerror or exc}") from None
+        return _write(fig, path)
     finally:
         plt.close(fig)
-    return path
 
 
 def success_plot(path: str | Path, curves: Mapping[str, np.ndarray], *, title: str = "Success plot",
@@ -144,11 +150,6 @@ def attribute_plot(path: str | Path, by_attribute: Mapping[str, Mapping[str, Map
         ax.grid(True, axis="y", alpha=0.3)
         if names:
             ax.legend(loc="upper center", fontsize=7, ncol=min(5, len(names)), frameon=False)
-        fig.tight_layout()
-        path.parent.mkdir(parents=True, exist_ok=True)
-        fig.savefig(path)
-    except OSError as exc:
-        raise OutputError(f"cannot write {path}: {exc.strerror or exc}") from None
+        return _write(fig, path)
     finally:
         plt.close(fig)
-    return path

@@ -86,13 +86,25 @@ class IMMEstimator:
         self.x_, self.P_ = np.asarray(x0, float).copy(), np.asarray(P0, float).copy()
         self.log_likelihood_ = 0.0
 
-    def predict(self) -> tuple[np.ndarray, np.ndarray]:
-        """Mix, predict every model, and return the combined prior."""
+    def _mix(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Each model's mixed initial condition and the predicted mode probabilities ``c`` (:func:`imm_mix`)."""
         xs = np.array([f.x_ for f in self.filters])
         Ps = np.array([f.P_ for f in self.filters])
-        x0, P0, self.c_ = imm_mix(xs, Ps, self.mu_, self.transition)
-        for j, f in enumerate(self.filters):
-            f.x_, f.P_ = x0[j], P0[j]
+        return imm_mix(xs, Ps, self.mu_, self.transition)
+
+    def _mode_probabilities(self, logL: np.ndarray) -> np.ndarray:
+        """``mu ∝ c L_j`` from the models' log-likelihoods (shifted by the maximum; sets ``log_likelihood_``)."""
+        log_post = np.log(np.maximum(self.c_, 1e-300)) + logL
+        shift = log_post.max()
+        weights = np.exp(log_post - shift)
+        self.log_likelihood_ = float(shift + np.log(weights.sum()))
+        return weights / weights.sum()
+
+    def predict(self) -> tuple[np.ndarray, np.ndarray]:
+        """Mix, predict every model, and return the combined prior."""
+        x0s, P0s, self.c_ = self._mix()
+        for f, x0, P0 in zip(self.filters, x0s, P0s):
+            f.x_, f.P_ = x0, P0
             f.predict()
         # Without a measurement the mode probabilities are the predicted ones.
         self.mu_ = self.c_ / self.c_.sum()
@@ -102,11 +114,7 @@ class IMMEstimator:
     def update(self, z: np.ndarray, R: np.ndarray | None = None) -> None:
         """Update every model with ``z`` and re-weight the modes."""
         logL = np.array([f.update(z, R).log_likelihood for f in self.filters])
-        log_post = np.log(np.maximum(self.c_, 1e-300)) + logL
-        shift = log_post.max()
-        weights = np.exp(log_post - shift)
-        self.log_likelihood_ = float(shift + np.log(weights.sum()))
-        self.mu_ = weights / weights.sum()
+        self.mu_ = self._mode_probabilities(logL)
         self._combine()
 
     def _combine(self) -> None:
@@ -179,7 +187,7 @@ def float_mode_probabilities(c: np.ndarray, log_likelihoods: np.ndarray, dtype=n
     return post / total if total > 0 else np.asarray(c, float) / float(np.sum(c))
 
 
-class MixedOrderIMM:
+class MixedOrderIMM(IMMEstimator):
     """IMM over Kalman filters of *different* state sizes (prefixes of one state), see :func:`mixed_order_mix`.
 
     Parameters
@@ -205,8 +213,7 @@ class MixedOrderIMM:
 
     def __init__(self, filters: Sequence[KalmanFilter], transition: np.ndarray, *, pad: str = "zero",
                  pad_var: float = 0.0, estimate: str = "combined", likelihood: str = "log") -> None:
-        self.filters = list(filters)
-        self.transition = np.asarray(transition, dtype=float)
+        super().__init__(filters, transition)
         self.pad = pad
         self.pad_var = pad_var
         self.estimate = estimate
@@ -224,27 +231,17 @@ class MixedOrderIMM:
         r = len(self.filters)
         self.mu_ = np.full(r, 1.0 / r)
         self.c_ = self.mu_.copy()
+        self.log_likelihood_ = 0.0
         self._combine()
 
-    def predict(self) -> tuple[np.ndarray, np.ndarray]:
-        x0s, P0s, self.c_ = mixed_order_mix([f.x_ for f in self.filters], [f.P_ for f in self.filters], self.mu_,
-                                            self.transition, pad=self.pad, pad_var=self.pad_var)
-        for f, x0, P0 in zip(self.filters, x0s, P0s):
-            f.x_, f.P_ = x0, P0
-            f.predict()
-        self.mu_ = self.c_ / self.c_.sum()
-        self._combine()
-        return self.x_, self.P_
+    def _mix(self) -> tuple[list, list, np.ndarray]:
+        return mixed_order_mix([f.x_ for f in self.filters], [f.P_ for f in self.filters], self.mu_,
+                               self.transition, pad=self.pad, pad_var=self.pad_var)
 
-    def update(self, z: np.ndarray, R: np.ndarray | None = None) -> None:
-        logL = np.array([f.update(z, R).log_likelihood for f in self.filters])
+    def _mode_probabilities(self, logL: np.ndarray) -> np.ndarray:
         if self.likelihood in ("float64", "float32"):
-            self.mu_ = float_mode_probabilities(self.c_, logL, np.dtype(self.likelihood))
-        else:
-            log_post = np.log(np.maximum(self.c_, 1e-300)) + logL
-            weights = np.exp(log_post - log_post.max())
-            self.mu_ = weights / weights.sum()
-        self._combine()
+            return float_mode_probabilities(self.c_, logL, np.dtype(self.likelihood))
+        return super()._mode_probabilities(logL)
 
     def _combine(self) -> None:
         n = self.n_state

@@ -24,6 +24,7 @@ channels, ``bins`` levels each (Staple: 32).
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import lru_cache
 
 import cv2
 import numpy as np
@@ -62,6 +63,16 @@ def box_masks(shape: tuple[int, int], box_size, *, inner: float = 0.1, context: 
     return obj, bg
 
 
+@lru_cache(maxsize=8)
+def _fixed_masks(shape: tuple[int, int], w: float, h: float, inner: float, context: float
+                 ) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`box_masks`, cached (read-only): a tracker's patch shape and box size in patch pixels stay fixed."""
+    masks = box_masks(shape, (w, h), inner=inner, context=context)
+    for m in masks:
+        m.setflags(write=False)
+    return masks
+
+
 @dataclass
 class ColourHistogramModel:
     """Staple's object/background colour histograms; see the module docstring.
@@ -88,7 +99,7 @@ class ColourHistogramModel:
         """Learn from a patch whose centre holds the target box of ``box_size`` patch pixels."""
         rate = self.learning_rate if rate is None else rate
         index = colour_bins(patch, self.bins)
-        obj, bg = box_masks(index.shape, box_size, inner=self.inner, context=self.context)
+        obj, bg = _fixed_masks(index.shape, float(box_size[0]), float(box_size[1]), self.inner, self.context)
         n = self.bins ** 3
         new_obj = np.bincount(index[obj], minlength=n) / max(int(obj.sum()), 1)
         new_bg = np.bincount(index[bg], minlength=n) / max(int(bg.sum()), 1)

@@ -91,11 +91,12 @@ def running_average(old: tuple, new: tuple, rate: float) -> tuple:
     return tuple((1.0 - rate) * a + rate * b for a, b in zip(old, new))
 
 
-def dcf_response(numerator: np.ndarray, denominator: np.ndarray, features_fft: np.ndarray, lam: float,
-                 shape: tuple[int, int]) -> np.ndarray:
-    """``y = IFFT(sum_l conj(A_l) Z_l / (B + lambda))`` (DSST eq. 6), real ``(h, w)`` with the zero shift at ``(0, 0)``."""
-    spectrum = np.sum(np.conj(numerator) * features_fft, axis=2) / (denominator + lam)
-    return fft.irfft2(spectrum, s=shape)
+def correlation_response(filter_fft: np.ndarray, features_fft: np.ndarray, shape: tuple[int, int]) -> np.ndarray:
+    """``y = IFFT(sum_l conj(H_l) Z_l)`` (DSST eq. 6 with ``H_l = A_l / (B + lambda)``), real ``(h, w)``, zero shift at ``(0, 0)``.
+
+    ``filter_fft`` is DSST's ``A / (B + lambda)`` or :func:`constrained_filter`'s ``G``.
+    """
+    return fft.irfft2(np.sum(np.conj(filter_fft) * features_fft, axis=2), s=shape)
 
 
 def constrained_filter(model_fft: np.ndarray, target_fft: np.ndarray, mask: np.ndarray, shape: tuple[int, int], *,
@@ -422,6 +423,7 @@ class CorrelationFilter:
         self.cos_ = cosine_window(self.shape_).astype(np.float32)
         box_cells = box.scale / self.cell_step(box.size)
         self.box_cells_ = box.size / self.cell_step(box.size)     # the box's (w, h) in cells
+        self.mask_ = self.target_mask()
         self.target_fft_ = fft.rfft2(gaussian_response(self.shape_, self.sigma_factor * box_cells).astype(np.float32))
         self.numerator_ = self.denominator_ = self.model_fft_ = self.admm_state_ = None
         self.scale_ = ScaleFilter(colour=self.colour) if self.scale_filter else None
@@ -444,7 +446,7 @@ class CorrelationFilter:
             self.model_fft_ = running_average((self.model_fft_,), (f,), rate)[0]
             first = self.admm_state_ is None
             self.filter_fft_, *state = constrained_filter(
-                self.model_fft_, self.target_fft_, self.target_mask(), self.shape_, lam=self.lam,
+                self.model_fft_, self.target_fft_, self.mask_, self.shape_, lam=self.lam,
                 iterations=self.admm_iterations * (5 if first else 1), mu=self.admm_mu, start=self.admm_state_)
             self.admm_state_ = tuple(state)
         else:
@@ -462,7 +464,7 @@ class CorrelationFilter:
         """
         patch = self.patch(image, centre, np.asarray(box_size, float) * scale)
         z = fft.rfft2(self.features(patch), axes=(0, 1))
-        response = fft.irfft2(np.sum(np.conj(self.filter_fft_) * z, axis=2), s=self.shape_)   # DSST eq. 6
+        response = correlation_response(self.filter_fft_, z, self.shape_)
         if self.colour_model_ is not None:
             colour = self.colour_model_.response(patch, self.box_cells_ * self.cell, self.shape_, self.cell)
             a = self.colour_merge
@@ -488,7 +490,7 @@ class CorrelationFilter:
         size = np.asarray(box_size, float) * s
         measured = response
         if self.quality_from == "target":   # is the target itself there? (the context may match without it)
-            measured = fft.irfft2(np.sum(np.conj(self.target_filter_fft_) * z, axis=2), s=self.shape_)
+            measured = correlation_response(self.target_filter_fft_, z, self.shape_)
         psr = peak_to_sidelobe(measured, index, self.exclude_cells)
         quality = float(np.clip((psr - self.psr_low) / (self.psr_high - self.psr_low), 0.0, 1.0))
         return CorrelationResult(window_centre=np.asarray(centre, float),
@@ -505,7 +507,7 @@ class CorrelationFilter:
         """
         h = fft.irfft2(self.filter_fft_, s=self.shape_, axes=(0, 1)).astype(np.float32)
         if target_only:
-            h *= self.target_mask()[:, :, None]
+            h *= self.mask_[:, :, None]
         return h
 
     def target_mask(self) -> np.ndarray:

@@ -7,13 +7,8 @@ Model (sec. 1.2, eqs. 2 and 8 of the paper)::
     O(t)   = argmin_O E(y(t), w(t), x(t), O)             (graph cut, vidtrack.learn.graphcut)
     h(y(t)_{i in O(t)}) = C x(t) + n(t)                  (centroid and extent of the inliers)
 
-``F`` is block-diagonal constant velocity and ``C`` picks ``c`` and ``d``.
-The state here is stored axis-major, ``[c_x, v_cx, c_y, v_cy, d_w, v_dw,
-d_h, v_dh]`` (a permutation of the paper's ordering), so that
-:func:`vidtrack.filters.kalman.motion_model` builds ``F``, ``Q`` and ``C``;
-prediction and the Joseph-form update are
-:func:`~vidtrack.filters.kalman.kf_predict` and
-:func:`~vidtrack.filters.kalman.kf_update`.
+The state, ``F``, ``C`` and the Kalman filter are in
+:mod:`vidtrack.filters.mil`; this module is the appearance side.
 
 Two pieces sit on the tracker's data path:
 
