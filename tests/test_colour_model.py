@@ -32,3 +32,10 @@ def test_object_probability_separates_colours_and_the_box_score_peaks_on_the_tar
     score = model.response(moved, (30, 30), (15, 21), 4)
     r, c = np.unravel_index(int(np.argmax(score)), score.shape)
     assert (r - 15 // 2, c - 21 // 2) == (2, -3)
+
+
+def test_box_masks_with_an_offset_are_the_centred_masks_moved():
+    obj, bg = box_masks((100, 120), (20, 30))
+    obj_moved, bg_moved = box_masks((100, 120), (20, 30), offset=(7, -4))
+    assert np.array_equal(obj_moved, np.roll(obj, (-4, 7), axis=(0, 1)))
+    assert np.array_equal(bg_moved, np.roll(bg, (-4, 7), axis=(0, 1)))

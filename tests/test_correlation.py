@@ -189,3 +189,49 @@ def test_score_map_measurer_follows_size_and_redetects_while_lost():
     r, c = np.unravel_index(int(np.argmax(smap.scores)), smap.scores.shape)
     assert np.linalg.norm(smap.box_at(r, c).center - (150, 130)) < 0.3 * box.scale
     assert smap.quality > 0.5
+
+
+def test_shift_cells_moves_features_by_whole_and_fractional_cells():
+    from vidtrack.measure.correlation import shift_cells
+    f = np.zeros((20, 16, 2), np.float32)
+    f[13, 10, :] = 1.0
+    g = shift_cells(f, (2, 3))                    # what sat (2, 3) cells from (8, 10) comes to (8, 10)
+    assert np.unravel_index(np.argmax(g[:, :, 0]), g.shape[:2]) == (10, 8)
+    assert np.allclose(g[10, 8], 1.0, atol=1e-5)
+    smooth = cv2.GaussianBlur(f, (0, 0), 2.0)
+    half = shift_cells(smooth, (0.5, 0.0))       # half a cell: the peak lies between columns 9 and 10
+    assert np.isclose(half[13, 9, 0], half[13, 10, 0], rtol=1e-2)
+    assert set(np.argsort(half[13, :, 0])[-2:]) == {9, 10}
+
+
+@pytest.mark.parametrize("constrained", [False, True])
+def test_reusing_the_detection_window_matches_a_recut_window(constrained):
+    """reuse_sample learns from the detection's window; with no shift that is exactly the re-cut window."""
+    rng = np.random.default_rng(4)
+    img0, patch = scene(rng, (150, 110), (40, 48))
+    img1, _ = scene(rng, (154, 112), (40, 48), patch)
+    box0 = Box.from_center(150, 110, 40, 48)
+    filters = {}
+    for reuse in (False, True):
+        cf = CorrelationFilter(padding=4.0, window_cells=40, constrained=constrained, colour_merge=0.3,
+                               reuse_sample=reuse, scale_filter=False)
+        cf.initialize(img0, box0)
+        cf.detect(img1, box0.center, box0.size)
+        filters[reuse] = cf
+    at_window = Box.from_center(*box0.center, *box0.size)     # learn where the window was cut: no shift
+    for cf in filters.values():
+        cf.update(img1, at_window)
+    a, b = filters[True].filter_fft_, filters[False].filter_fft_
+    assert np.linalg.norm(a - b) < 1e-4 * np.linalg.norm(b)
+    assert np.allclose(filters[True].colour_model_.table_, filters[False].colour_model_.table_)
+    # learning at the true centre, off the window's by under a cell: the next detections agree
+    img2, _ = scene(rng, (158, 115), (40, 48), patch)
+    found = {}
+    for reuse in (False, True):
+        cf = CorrelationFilter(padding=4.0, window_cells=40, constrained=constrained, colour_merge=0.3,
+                               reuse_sample=reuse, scale_filter=False)
+        cf.initialize(img0, box0)
+        cf.detect(img1, box0.center, box0.size)
+        cf.update(img1, Box.from_center(154, 112, *box0.size))
+        found[reuse] = cf.detect(img2, (154, 112), box0.size).centre
+    assert np.linalg.norm(found[True] - found[False]) < 1.0

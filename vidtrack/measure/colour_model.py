@@ -39,16 +39,17 @@ def colour_bins(patch: np.ndarray, bins: int) -> np.ndarray:
     return (q[:, :, 0] * bins + q[:, :, 1]) * bins + q[:, :, 2]
 
 
-def box_masks(shape: tuple[int, int], box_size, *, inner: float = 0.1, context: float = 1.0
-              ) -> tuple[np.ndarray, np.ndarray]:
-    """Object and background masks of a patch ``shape = (H, W)`` whose centre holds a box of ``box_size = (w, h)`` px.
+def box_masks(shape: tuple[int, int], box_size, *, inner: float = 0.1, context: float = 1.0,
+              offset=(0.0, 0.0)) -> tuple[np.ndarray, np.ndarray]:
+    """Object and background masks of a patch ``shape = (H, W)`` holding a box of ``box_size = (w, h)`` px.
 
-    The object region is the box shrunk by ``inner`` of its side on each side
+    The box is centred ``offset = (dx, dy)`` px from the patch centre.  The
+    object region is the box shrunk by ``inner`` of its side on each side
     (so its border pixels, often background, stay out); the background is
     the box grown by ``context`` of its side on each side, less the box.
     """
     H, W = shape
-    cx, cy = W / 2.0, H / 2.0
+    cx, cy = W / 2.0 + float(offset[0]), H / 2.0 + float(offset[1])
     bw, bh = float(box_size[0]), float(box_size[1])
 
     def rect(w: float, h: float) -> np.ndarray:
@@ -95,11 +96,21 @@ class ColourHistogramModel:
     def __post_init__(self) -> None:
         self.object_ = self.background_ = None
 
-    def update(self, patch: np.ndarray, box_size, *, rate: float | None = None) -> None:
-        """Learn from a patch whose centre holds the target box of ``box_size`` patch pixels."""
+    def update(self, patch: np.ndarray, box_size, *, rate: float | None = None, offset=None,
+               index: np.ndarray | None = None) -> None:
+        """Learn from a patch holding the target box of ``box_size`` patch pixels at its centre.
+
+        ``offset = (dx, dy)``: the box is that many patch pixels from the
+        centre instead (rounded to whole pixels); ``index``: the patch's
+        :func:`colour_bins`, when already computed.
+        """
         rate = self.learning_rate if rate is None else rate
-        index = colour_bins(patch, self.bins)
-        obj, bg = _fixed_masks(index.shape, float(box_size[0]), float(box_size[1]), self.inner, self.context)
+        index = colour_bins(patch, self.bins) if index is None else index
+        dx, dy = (0, 0) if offset is None else (int(round(offset[0])), int(round(offset[1])))
+        if dx == 0 and dy == 0:
+            obj, bg = _fixed_masks(index.shape, float(box_size[0]), float(box_size[1]), self.inner, self.context)
+        else:
+            obj, bg = box_masks(index.shape, box_size, inner=self.inner, context=self.context, offset=(dx, dy))
         n = self.bins ** 3
         new_obj = np.bincount(index[obj], minlength=n) / max(int(obj.sum()), 1)
         new_bg = np.bincount(index[bg], minlength=n) / max(int(bg.sum()), 1)
@@ -110,18 +121,20 @@ class ColourHistogramModel:
             self.background_ = (1.0 - rate) * self.background_ + rate * new_bg
         self.table_ = (self.object_ / (self.object_ + self.background_ + 1e-9)).astype(np.float32)   # eq. 14
 
-    def likelihood(self, patch: np.ndarray) -> np.ndarray:
+    def likelihood(self, patch: np.ndarray, *, index: np.ndarray | None = None) -> np.ndarray:
         """``beta(u)``: the object probability of every pixel, ``(H, W)`` float32 (eq. 14)."""
-        return self.table_[colour_bins(patch, self.bins)]
+        return self.table_[colour_bins(patch, self.bins) if index is None else index]
 
-    def response(self, patch: np.ndarray, box_size, shape: tuple[int, int], step: float) -> np.ndarray:
+    def response(self, patch: np.ndarray, box_size, shape: tuple[int, int], step: float, *,
+                 index: np.ndarray | None = None) -> np.ndarray:
         """Mean ``beta`` over the box at each of ``shape = (h, w)`` positions ``step`` px apart, centred (eq. 12).
 
         Position ``(i, j)`` is the box centred ``((j - w // 2) step, (i - h // 2) step)``
         from the patch centre: the layout of a shifted correlation response.
+        ``index``: the patch's :func:`colour_bins`, when already computed.
         """
         k = (max(int(round(box_size[0])), 1), max(int(round(box_size[1])), 1))
-        mean = cv2.boxFilter(self.likelihood(patch), -1, k, normalize=True, borderType=cv2.BORDER_REPLICATE)
+        mean = cv2.boxFilter(self.likelihood(patch, index=index), -1, k, normalize=True, borderType=cv2.BORDER_REPLICATE)
         H, W = mean.shape
         h, w = shape
         rows = np.clip(np.round(H / 2.0 + (np.arange(h) - h // 2) * step).astype(int), 0, H - 1)

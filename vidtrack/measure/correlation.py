@@ -57,7 +57,7 @@ import numpy as np
 from scipy import fft
 
 from ..types import Box, Estimate, Frame, ScoreMap
-from .colour_model import ColourHistogramModel
+from .colour_model import ColourHistogramModel, colour_bins
 from .features import cell_features
 from .image import cut_window
 
@@ -161,6 +161,20 @@ def constrained_filter(model_fft: np.ndarray, target_fft: np.ndarray, mask: np.n
         zeta = zeta + mu * (g - h)                                                           # eq. 13
         mu = min(mu_step * mu, mu_max)
     return g, h, zeta
+
+
+def shift_cells(features: np.ndarray, shift) -> np.ndarray:
+    """``features`` ``(h, w, d)`` moved by ``-shift = -(dx, dy)`` cells, circularly (sub-cell by the Fourier shift theorem).
+
+    The result at cell ``p`` is the input at ``p + shift``: what sat ``shift``
+    from the window centre comes to the centre.
+    """
+    h, w = features.shape[:2]
+    spectrum = fft.rfft2(features, axes=(0, 1))
+    fy = fft.fftfreq(h)[:, None]
+    fx = fft.rfftfreq(w)[None, :]
+    ramp = np.exp(2j * np.pi * (fy * float(shift[1]) + fx * float(shift[0]))).astype(np.complex64)
+    return fft.irfft2(spectrum * ramp[:, :, None], s=(h, w), axes=(0, 1)).astype(np.float32)
 
 
 def peak_to_sidelobe(response: np.ndarray, peak_index: tuple[int, int], exclude: int) -> float:
@@ -363,6 +377,15 @@ class CorrelationFilter:
     admm_iterations, admm_mu
         ADMM iterations per frame (five times as many on the first) and
         relative penalty of the constrained filter.
+    reuse_sample
+        :meth:`update` learns from the window :meth:`detect` has just cut
+        (its features shifted in the Fourier domain so that the learned box is
+        at the centre, the colour masks moved by the same shift) instead of
+        cutting and describing a new window around the learned box, when that
+        box is within ``reuse_tolerance`` (relative) of the searched size
+        and a quarter window of its centre.  A departure from DSST and Staple
+        for speed (one feature extraction a frame instead of two); the shifted
+        sample's cosine taper and border differ from a re-cut one by the shift.
     """
 
     padding: float = 2.5
@@ -385,6 +408,8 @@ class CorrelationFilter:
     constrained: bool = False
     admm_iterations: int = 2
     admm_mu: float = 0.01
+    reuse_sample: bool = False
+    reuse_tolerance: float = 0.1
 
     # -- geometry -----------------------------------------------------
 
@@ -426,6 +451,7 @@ class CorrelationFilter:
         self.mask_ = self.target_mask()
         self.target_fft_ = fft.rfft2(gaussian_response(self.shape_, self.sigma_factor * box_cells).astype(np.float32))
         self.numerator_ = self.denominator_ = self.model_fft_ = self.admm_state_ = None
+        self.last_sample_ = None
         self.scale_ = ScaleFilter(colour=self.colour) if self.scale_filter else None
         self.colour_model_ = (ColourHistogramModel(bins=self.colour_bins, learning_rate=self.colour_rate)
                               if self.colour_merge > 0 else None)
@@ -438,10 +464,20 @@ class CorrelationFilter:
         rate = self.learning_rate if rate is None else rate
         if self.scale_ is not None and self.numerator_ is not None:
             self.scale_.update(image, box, rate=None if rate < 1.0 else rate)
-        patch = self.patch(image, box.center, box.size)
-        if self.colour_model_ is not None:
-            self.colour_model_.update(patch, self.box_cells_ * self.cell, rate=None if rate < 1.0 else rate)
-        f = fft.rfft2(self.features(patch), axes=(0, 1))
+        sample, self.last_sample_ = self.last_sample_, None
+        shift = self._reusable_shift(sample, box) if self.reuse_sample else None
+        colour_rate = None if rate < 1.0 else rate
+        if shift is None:
+            patch = self.patch(image, box.center, box.size)
+            if self.colour_model_ is not None:
+                self.colour_model_.update(patch, self.box_cells_ * self.cell, rate=colour_rate)
+            f = fft.rfft2(self.features(patch), axes=(0, 1))
+        else:   # the detection's window, shifted so that the learned box is at its centre
+            _, _, patch, raw, index = sample
+            if self.colour_model_ is not None:
+                self.colour_model_.update(patch, self.box_cells_ * self.cell, rate=colour_rate,
+                                          offset=shift * self.cell, index=index)
+            f = fft.rfft2(shift_cells(raw, shift) * self.cos_[:, :, None], axes=(0, 1))
         if self.constrained:
             self.model_fft_ = running_average((self.model_fft_,), (f,), rate)[0]
             first = self.admm_state_ is None
@@ -462,14 +498,32 @@ class CorrelationFilter:
         With ``colour_merge`` the response is Staple's merge (eq. 22) of the
         filter's and the colour histograms' (at the same shifts).
         """
-        patch = self.patch(image, centre, np.asarray(box_size, float) * scale)
-        z = fft.rfft2(self.features(patch), axes=(0, 1))
+        size = np.asarray(box_size, float) * scale
+        patch = self.patch(image, centre, size)
+        raw = cell_features(patch, cell=self.cell, colour=self.colour)
+        z = fft.rfft2(raw * self.cos_[:, :, None], axes=(0, 1))
         response = correlation_response(self.filter_fft_, z, self.shape_)
+        index = None
         if self.colour_model_ is not None:
-            colour = self.colour_model_.response(patch, self.box_cells_ * self.cell, self.shape_, self.cell)
+            index = colour_bins(patch, self.colour_model_.bins)
+            colour = self.colour_model_.response(patch, self.box_cells_ * self.cell, self.shape_, self.cell,
+                                                 index=index)
             a = self.colour_merge
             response = fft.ifftshift((1.0 - a) * fft.fftshift(response) + a * colour)
+        self.sample_ = (np.asarray(centre, float), size, patch, raw, index)   # for update (reuse_sample)
         return response, z
+
+    def _reusable_shift(self, sample, box: Box) -> np.ndarray | None:
+        """The shift ``(dx, dy)`` in cells from ``sample``'s window centre to ``box``, if the window can be reused."""
+        if sample is None:
+            return None
+        centre, size, *_ = sample
+        if np.any(np.abs(box.size / np.maximum(size, 1e-9) - 1.0) > self.reuse_tolerance):
+            return None
+        shift = (box.center - centre) / self.cell_step(size)
+        if np.any(np.abs(shift) > 0.25 * np.array([self.shape_[1], self.shape_[0]])):
+            return None
+        return shift
 
     def detect(self, image: np.ndarray, centre, box_size, *, scales: tuple[float, ...] | None = None
                ) -> CorrelationResult:
@@ -481,8 +535,8 @@ class CorrelationFilter:
             shift, index, peak = subpixel_peak(response)
             score = peak * (1.0 if s == 1.0 else self.scale_penalty)
             if best is None or score > best[0]:
-                best = (score, s, response, shift, index, peak, z)
-        _, s, response, shift, index, peak, z = best
+                best = (score, s, response, shift, index, peak, z, self.sample_)
+        _, s, response, shift, index, peak, z, self.last_sample_ = best
         step = self.cell_step(np.asarray(box_size, float) * s)
         found = np.asarray(centre, float) + shift * step
         if self.scale_ is not None and len(scales) == 1:   # DSST: the scale filter at the new position

@@ -102,6 +102,7 @@ from __future__ import annotations
 
 import time
 from collections import defaultdict
+from concurrent.futures import Future, ThreadPoolExecutor
 from dataclasses import dataclass, replace
 
 import cv2
@@ -184,9 +185,10 @@ def locate_inliers(labels: np.ndarray, weights: np.ndarray, box_size: np.ndarray
     h, w = labels.shape
     sx, sy = max(box_size[0] / 4.0, 1.0), max(box_size[1] / 4.0, 1.0)
     smooth = cv2.GaussianBlur(w_pix, (0, 0), sigmaX=sx, sigmaY=sy)
-    vv, uu = np.indices((h, w))
-    d2 = ((uu + 0.5 - start[0]) / box_size[0]) ** 2 + ((vv + 0.5 - start[1]) / box_size[1]) ** 2
-    smooth = smooth * np.exp(-0.5 * d2)  # gentle preference for the prediction on ties
+    # gentle preference for the prediction on ties: exp(-d^2 / 2) in box units, separable in u and v
+    du = (np.arange(w) + 0.5 - start[0]) / box_size[0]
+    dv = (np.arange(h) + 0.5 - start[1]) / box_size[1]
+    smooth = smooth * np.outer(np.exp(-0.5 * dv ** 2), np.exp(-0.5 * du ** 2))
     v0, u0 = np.unravel_index(int(np.argmax(smooth)), smooth.shape)
     c = np.array([u0 + 0.5, v0 + 0.5])
     for _ in range(max(iterations, 1)):
@@ -319,6 +321,16 @@ class MILMeasurer:
         After this many lost frames, every ``global_every`` frames, the whole frame is searched.
     redetect
         Re-detection by the correlation filter (the whole-frame search and ``cf_reacquire``).
+    cf_reuse_sample
+        The correlation filter learns from its detection's window, shifted
+        (:class:`~vidtrack.measure.correlation.CorrelationFilter` ``reuse_sample``).
+    cf_thread
+        Run the correlation filter (its update from the last frame, then its
+        detection in this one) in a second thread while this thread computes
+        the superpixels, the SVM scores and the graph cut; the two meet at the
+        fusion.  The filter shares no state with the superpixel side, so the
+        results are the same as with ``False`` (one thread); only the wall
+        clock differs.
     ncc_radius
         The refinement searches this fraction of the box size around the inlier-based centre.
     ncc_min
@@ -360,7 +372,7 @@ class MILMeasurer:
                  size_from: str = "cf", cf_min: float = 0.15, cf_motion: float = 0.05, cf_reacquire: float = 0.9,
                  cf_learn_above: float = 0.2, cf_learning_rate: float = 0.02, cf_padding: float = 4.0, cf_window_cells: int = 40,
                  cf_constrained: bool = True, cf_colour_merge: float = 0.3, cf_options: dict | None = None, global_after: int = 30, global_every: int = 5, redetect: bool = True,
-                 rng: np.random.Generator | int | None = None) -> None:
+                 cf_reuse_sample: bool = True, cf_thread: bool = True, rng: np.random.Generator | int | None = None) -> None:
         self.lam = lam
         self.pad = pad
         self.max_extra = max_extra
@@ -414,7 +426,18 @@ class MILMeasurer:
         self.global_after = global_after
         self.global_every = global_every
         self.redetect = redetect
+        self.cf_reuse_sample = cf_reuse_sample
+        self.cf_thread = cf_thread
         self.rng = rng
+        self._worker: ThreadPoolExecutor | None = None
+        self._pending: Future | None = None
+
+    def __getstate__(self) -> dict:
+        # the worker thread and its queue do not pickle (process pools, deepcopy): wait, then leave them out
+        self._wait()
+        state = dict(self.__dict__)
+        state["_worker"], state["_pending"] = None, None
+        return state
 
     # -- helpers --------------------------------------------------------
 
@@ -423,7 +446,32 @@ class MILMeasurer:
         self.timings_[name] += now - start
         return now
 
-    def _correlate(self, frame: Frame, prior: Estimate) -> CorrelationResult:
+    def _run(self, task, *args):
+        """Run ``task(*args)`` on the correlation worker (queued after any pending task), or here."""
+        if not self.cf_thread:
+            return task(*args)
+        if self._worker is None:
+            self._worker = ThreadPoolExecutor(max_workers=1, thread_name_prefix="vidtrack-cf")
+        self._pending = self._worker.submit(task, *args)
+        return self._pending
+
+    def _wait(self):
+        """The result of the worker's last task (re-raising its error); None when there is none."""
+        pending, self._pending = getattr(self, "_pending", None), None
+        if pending is None:
+            return None
+        t0 = time.perf_counter()
+        try:
+            return pending.result()
+        finally:
+            self._tic("correlation (wait)", t0)
+
+    def _update_correlation(self, image: np.ndarray, box: Box) -> None:
+        t0 = time.perf_counter()
+        self.cf_.update(image, box)
+        self.cf_timings_["correlation"] += time.perf_counter() - t0
+
+    def _correlate(self, frame: Frame, prior: Estimate, lost_run: int) -> CorrelationResult:
         """The correlation filter's detection around the prior; after a long loss, around the frame's best peak.
 
         After ``global_after`` lost frames, every ``global_every`` frames,
@@ -435,12 +483,12 @@ class MILMeasurer:
         t0 = time.perf_counter()
         size = prior.box.size
         centre = prior.box.center
-        if (prior.status == LOST and self.redetect and self.lost_run_ >= self.global_after
-                and self.lost_run_ % max(self.global_every, 1) == 0):
+        if (prior.status == LOST and self.redetect and lost_run >= self.global_after
+                and lost_run % max(self.global_every, 1) == 0):
             whole = np.array([frame.width, frame.height], float)
             centre = self.cf_.search(frame.image, whole / 2.0, whole, size).centre   # target only: no stale context
         result = self.cf_.detect(frame.image, centre, size)
-        self._tic("correlation", t0)
+        self.cf_timings_["correlation"] += time.perf_counter() - t0
         return result
 
     def _superpixels(self, frame: Frame, center, size, sigma):
@@ -496,7 +544,9 @@ class MILMeasurer:
 
     def initialize(self, frame: Frame, box: Box) -> None:
         """Bootstrap the SVM from the first frame: >= 70% inside the box positive, the rest negative (sec. 2.1)."""
+        self._wait()
         self.timings_ = defaultdict(float)
+        self.cf_timings_ = defaultdict(float)   # the correlation worker's stages (overlapping the others)
         self.svm_ = PegasosSVM(lam=self.svm_lam, n_iter=self.svm_iter, max_t=self.svm_max_t,
                                batch_size=self.svm_batch, average=self.svm_average, rng=self.rng)
         self.t_ = 0
@@ -512,9 +562,10 @@ class MILMeasurer:
             t0 = time.perf_counter()
             self.cf_ = CorrelationFilter(learning_rate=self.cf_learning_rate, padding=self.cf_padding,
                                          window_cells=self.cf_window_cells, constrained=self.cf_constrained,
-                                         colour_merge=self.cf_colour_merge, **self.cf_options)
+                                         colour_merge=self.cf_colour_merge, reuse_sample=self.cf_reuse_sample,
+                                         **self.cf_options)
             self.cf_.initialize(frame.image, box)
-            self._tic("correlation", t0)
+            self.cf_timings_["correlation"] += time.perf_counter() - t0
         out = self._superpixels(frame, box.center, box.size, np.zeros(2))
         if out is None:
             self.initial_ = (np.zeros((0, 1)), np.zeros(0), 0)
@@ -545,26 +596,17 @@ class MILMeasurer:
                 self.template0_, self.template_ = patch, patch.copy()
         self.training_ = [] if self.keep_initial else self.training_
 
-    def measure(self, frame: Frame, prior: Estimate) -> Superpixels | None:
-        """Superpixels of the search region, SVM scores, graph-cut inliers and the inlier box."""
-        self.t_ += 1
-        self.last_ = None
-        sigma = np.zeros(2)
-        if prior.covariance is not None:
-            sigma = np.sqrt(np.maximum(np.diag(prior.covariance)[:2], 0.0))
-        self.lost_run_ = self.lost_run_ + 1 if prior.status == LOST else 0
-        cf = self._correlate(frame, prior) if self.cf_ is not None else None
-        self.cf_result_ = cf
-        if (cf is not None and self.redetect and prior.status == LOST and cf.quality >= self.cf_reacquire
-                and np.linalg.norm(cf.centre - prior.box.center) > 0.5 * prior.box.scale):
-            # re-detection: the correlation filter proposes, the superpixels and the SVM verify there
-            prior = replace(prior, box=Box.from_center(*cf.centre, *prior.box.size))
+    def _find_inliers(self, frame: Frame, prior: Estimate, sigma: np.ndarray):
+        """Superpixels of the search region around ``prior``, their SVM scores and the graph cut's inliers.
+
+        Returns ``(region, labels, features, scores, inliers, region_box, extra)``
+        (``region_box`` the prior's box and ``extra`` the ``lam sigma`` margin,
+        both in region pixels), or None when the region leaves the frame.
+        """
         out = self._superpixels(frame, prior.box.center, prior.box.size, sigma)
         if out is None:
             return None
         region, labels, desc, features = out
-        grey = None
-        self.ncc_peak_ = -1.0
         t0 = time.perf_counter()
         scores = self.svm_.decision_function(features)
         t0 = self._tic("svm", t0)
@@ -589,7 +631,31 @@ class MILMeasurer:
         inliers = select_inliers(cut_scores, desc, pairs, lengths, in_bag, slope=self.cut_slope,
                                  beta=self.cut_beta, area=area)
         self._tic("graphcut", t0)
+        return region, labels, features, scores, inliers, region_box, extra
 
+    def measure(self, frame: Frame, prior: Estimate) -> Superpixels | None:
+        """Superpixels of the search region, SVM scores, graph-cut inliers and the inlier box."""
+        self.t_ += 1
+        self.last_ = None
+        sigma = np.zeros(2)
+        if prior.covariance is not None:
+            sigma = np.sqrt(np.maximum(np.diag(prior.covariance)[:2], 0.0))
+        self.lost_run_ = self.lost_run_ + 1 if prior.status == LOST else 0
+        # the correlation filter (a second thread, see cf_thread) and the superpixel side run side by side
+        pending = self._run(self._correlate, frame, prior, self.lost_run_) if self.cf_ is not None else None
+        found = self._find_inliers(frame, prior, sigma)
+        cf = (self._wait() if self.cf_thread else pending) if self.cf_ is not None else None
+        self.cf_result_ = cf
+        if (cf is not None and self.redetect and prior.status == LOST and cf.quality >= self.cf_reacquire
+                and np.linalg.norm(cf.centre - prior.box.center) > 0.5 * prior.box.scale):
+            # re-detection: the correlation filter proposes, the superpixels and the SVM verify there
+            prior = replace(prior, box=Box.from_center(*cf.centre, *prior.box.size))
+            found = self._find_inliers(frame, prior, sigma)
+        if found is None:
+            return None
+        region, labels, features, scores, inliers, region_box, extra = found
+        grey = None
+        self.ncc_peak_ = -1.0
         box = None
         quality = 0.0
         expected = max(region_box.area, 1.0)
@@ -676,8 +742,6 @@ class MILMeasurer:
                     self.template_ = (1.0 - self.ncc_rate) * self.template_ + self.ncc_rate * patch
             cf = self.cf_result_
             if cf is not None and cf.quality >= self.cf_learn_above:
-                t0 = time.perf_counter()
-                self.cf_.update(frame.image, posterior.box)
-                self._tic("correlation", t0)
+                self._run(self._update_correlation, frame.image, posterior.box)   # overlaps what follows
         if self.t_ % self.update_every == 0 and self.buffer_:
             self._train(self.svm_iter)

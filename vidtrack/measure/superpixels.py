@@ -126,9 +126,10 @@ def slic_labels(image: np.ndarray, *, region_size: int = 8, ruler: float = 10.0,
     sp.iterate(int(iterations))
     sp.enforceLabelConnectivity(25)
     labels = sp.getLabels()
-    # compact the label set (connectivity enforcement may leave gaps)
-    used, compact = np.unique(labels, return_inverse=True)
-    return compact.reshape(labels.shape).astype(np.int32)
+    # compact the label set (connectivity enforcement may leave gaps): a lookup table, not np.unique's sort
+    used = np.bincount(labels.ravel()) > 0
+    compact = (np.cumsum(used) - 1).astype(np.int32)
+    return compact[labels]
 
 
 def _lbp_codes(grey: np.ndarray) -> np.ndarray:
@@ -272,5 +273,6 @@ def adjacency(labels: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     keep = a != b
     lo, hi = np.minimum(a[keep], b[keep]), np.maximum(a[keep], b[keep])
     K = int(labels.max()) + 1
-    codes, counts = np.unique(lo * K + hi, return_counts=True)
-    return np.stack([codes // K, codes % K], axis=1), counts.astype(float)
+    counts = np.bincount(lo * K + hi, minlength=K * K)   # K is a few hundred at most: K^2 bins beat a sort
+    codes = np.flatnonzero(counts)
+    return np.stack([codes // K, codes % K], axis=1), counts[codes].astype(float)
