@@ -326,11 +326,12 @@ class MILMeasurer:
         (:class:`~vidtrack.measure.correlation.CorrelationFilter` ``reuse_sample``).
     cf_thread
         Run the correlation filter (its update from the last frame, then its
-        detection in this one) in a second thread while this thread computes
-        the superpixels, the SVM scores and the graph cut; the two meet at the
-        fusion.  The filter shares no state with the superpixel side, so the
-        results are the same as with ``False`` (one thread); only the wall
-        clock differs.
+        detection in this one) and the Pegasos updates in a second thread:
+        the Pegasos update of ``learn`` runs while this thread cuts the next
+        frame's superpixels (their scores wait for it), the filter while it
+        computes the superpixels, the SVM scores and the graph cut (they meet
+        at the fusion).  Each task reads what it would read in one thread, so
+        the results are the same as with ``False``; only the wall clock differs.
     ncc_radius
         The refinement searches this fraction of the box size around the inlier-based centre.
     ncc_min
@@ -430,13 +431,14 @@ class MILMeasurer:
         self.cf_thread = cf_thread
         self.rng = rng
         self._worker: ThreadPoolExecutor | None = None
-        self._pending: Future | None = None
+        self._cf_tasks: list[Future] = []
+        self._svm_task: Future | None = None
 
     def __getstate__(self) -> dict:
         # the worker thread and its queue do not pickle (process pools, deepcopy): wait, then leave them out
-        self._wait()
+        self._wait_all()
         state = dict(self.__dict__)
-        state["_worker"], state["_pending"] = None, None
+        state["_worker"], state["_cf_tasks"], state["_svm_task"] = None, [], None
         return state
 
     # -- helpers --------------------------------------------------------
@@ -446,30 +448,52 @@ class MILMeasurer:
         self.timings_[name] += now - start
         return now
 
-    def _run(self, task, *args):
-        """Run ``task(*args)`` on the correlation worker (queued after any pending task), or here."""
+    def _submit(self, task, *args) -> Future:
+        """``task(*args)`` on the worker thread, queued after the tasks before it (``cf_thread``), or run here now."""
         if not self.cf_thread:
-            return task(*args)
+            done: Future = Future()
+            try:
+                done.set_result(task(*args))
+            except BaseException as exc:  # raised where the result is taken, as from the thread
+                done.set_exception(exc)
+            return done
         if self._worker is None:
-            self._worker = ThreadPoolExecutor(max_workers=1, thread_name_prefix="vidtrack-cf")
-        self._pending = self._worker.submit(task, *args)
-        return self._pending
+            self._worker = ThreadPoolExecutor(max_workers=1, thread_name_prefix="vidtrack-mil")
+        return self._worker.submit(task, *args)
 
-    def _wait(self):
-        """The result of the worker's last task (re-raising its error); None when there is none."""
-        pending, self._pending = getattr(self, "_pending", None), None
-        if pending is None:
-            return None
+    def _result(self, tasks: list[Future], stage: str):
+        """Wait for ``tasks`` in order (re-raising the first error); the last one's result (None: no task)."""
         t0 = time.perf_counter()
+        result = None
         try:
-            return pending.result()
+            for task in tasks:
+                result = task.result()
         finally:
-            self._tic("correlation (wait)", t0)
+            self._tic(stage, t0)
+        return result
+
+    def _wait_svm(self) -> None:
+        """Wait for a Pegasos update running on the worker (the scores and the training set need it)."""
+        task, self._svm_task = getattr(self, "_svm_task", None), None
+        if task is not None:
+            self._result([task], "svm (wait)")
+
+    def _wait_correlation(self) -> CorrelationResult | None:
+        tasks, self._cf_tasks = getattr(self, "_cf_tasks", []), []
+        return self._result(tasks, "correlation (wait)") if tasks else None
+
+    def _wait_all(self) -> None:
+        self._wait_svm()
+        self._wait_correlation()
+
+    def _background_tic(self, name: str, start: float) -> None:
+        """Time a worker task: in ``cf_timings_`` when it runs in the worker thread, else in ``timings_``."""
+        (self.cf_timings_ if self.cf_thread else self.timings_)[name] += time.perf_counter() - start
 
     def _update_correlation(self, image: np.ndarray, box: Box) -> None:
         t0 = time.perf_counter()
         self.cf_.update(image, box)
-        self.cf_timings_["correlation"] += time.perf_counter() - t0
+        self._background_tic("correlation", t0)
 
     def _correlate(self, frame: Frame, prior: Estimate, lost_run: int) -> CorrelationResult:
         """The correlation filter's detection around the prior; after a long loss, around the frame's best peak.
@@ -488,7 +512,7 @@ class MILMeasurer:
             whole = np.array([frame.width, frame.height], float)
             centre = self.cf_.search(frame.image, whole / 2.0, whole, size).centre   # target only: no stale context
         result = self.cf_.detect(frame.image, centre, size)
-        self.cf_timings_["correlation"] += time.perf_counter() - t0
+        self._background_tic("correlation", t0)
         return result
 
     def _superpixels(self, frame: Frame, center, size, sigma):
@@ -526,9 +550,10 @@ class MILMeasurer:
         if np.any(keep):
             self.buffer_.append((features[keep], labels[keep], t))
 
-    def _train(self, n_iter: int) -> None:
+    def _train(self, n_iter: int, now: int) -> None:
+        """Pegasos on the training triples of the last ``gamma_max`` frames before frame ``now`` (and the anchor)."""
         t0 = time.perf_counter()
-        horizon = self.t_ - self.gamma_max
+        horizon = now - self.gamma_max
         self.training_ = [(X, y, t) for X, y, t in self.training_ + self.buffer_ if t >= horizon]
         self.buffer_ = []
         sets = list(self.training_)
@@ -538,13 +563,13 @@ class MILMeasurer:
         y = np.concatenate([s[1] for s in sets])
         if np.any(y > 0) and np.any(y < 0):
             self.svm_.partial_fit(X, y, n_iter=n_iter)
-        self._tic("svm", t0)
+        self._background_tic("svm training", t0)
 
     # -- Measurer protocol -----------------------------------------------
 
     def initialize(self, frame: Frame, box: Box) -> None:
         """Bootstrap the SVM from the first frame: >= 70% inside the box positive, the rest negative (sec. 2.1)."""
-        self._wait()
+        self._wait_all()
         self.timings_ = defaultdict(float)
         self.cf_timings_ = defaultdict(float)   # the correlation worker's stages (overlapping the others)
         self.svm_ = PegasosSVM(lam=self.svm_lam, n_iter=self.svm_iter, max_t=self.svm_max_t,
@@ -565,7 +590,7 @@ class MILMeasurer:
                                          colour_merge=self.cf_colour_merge, reuse_sample=self.cf_reuse_sample,
                                          **self.cf_options)
             self.cf_.initialize(frame.image, box)
-            self.cf_timings_["correlation"] += time.perf_counter() - t0
+            self._background_tic("correlation", t0)
         out = self._superpixels(frame, box.center, box.size, np.zeros(2))
         if out is None:
             self.initial_ = (np.zeros((0, 1)), np.zeros(0), 0)
@@ -588,7 +613,7 @@ class MILMeasurer:
             self.size_ratio_ = np.clip(rbox.size / meas[1], 0.5, 2.0)
             self.centre_offset_ = (rbox.center - meas[0]) / rbox.size
         self.training_ = [self.initial_]
-        self._train(self.svm_init_iter)
+        self._train(self.svm_init_iter, self.t_)
         if self.refine == "ncc":
             tsize = (max(int(round(rbox.w)), 3), max(int(round(rbox.h)), 3))
             patch = cut_patch(to_gray(region.image), rbox.center, tsize)
@@ -607,6 +632,7 @@ class MILMeasurer:
         if out is None:
             return None
         region, labels, desc, features = out
+        self._wait_svm()
         t0 = time.perf_counter()
         scores = self.svm_.decision_function(features)
         t0 = self._tic("svm", t0)
@@ -642,9 +668,10 @@ class MILMeasurer:
             sigma = np.sqrt(np.maximum(np.diag(prior.covariance)[:2], 0.0))
         self.lost_run_ = self.lost_run_ + 1 if prior.status == LOST else 0
         # the correlation filter (a second thread, see cf_thread) and the superpixel side run side by side
-        pending = self._run(self._correlate, frame, prior, self.lost_run_) if self.cf_ is not None else None
+        if self.cf_ is not None:
+            self._cf_tasks.append(self._submit(self._correlate, frame, prior, self.lost_run_))
         found = self._find_inliers(frame, prior, sigma)
-        cf = (self._wait() if self.cf_thread else pending) if self.cf_ is not None else None
+        cf = self._wait_correlation()
         self.cf_result_ = cf
         if (cf is not None and self.redetect and prior.status == LOST and cf.quality >= self.cf_reacquire
                 and np.linalg.norm(cf.centre - prior.box.center) > 0.5 * prior.box.scale):
@@ -726,6 +753,7 @@ class MILMeasurer:
         the posterior box; negatives: superpixels with at most
         ``negative_fraction`` inside it.  Nothing is learned while lost.
         """
+        self._wait_svm()   # the training set is not touched while Pegasos runs on the worker
         data = self.last_
         if data is not None and posterior.status == TRACKING and posterior.confidence >= self.learn_above:
             frac = sp.fraction_inside(data.labels, data.region.box_to_region(posterior.box), len(data.scores))
@@ -740,8 +768,10 @@ class MILMeasurer:
                 patch = cut_patch(data.grey, rbox.center, self.template_.shape[::-1])
                 if patch is not None:
                     self.template_ = (1.0 - self.ncc_rate) * self.template_ + self.ncc_rate * patch
-            cf = self.cf_result_
-            if cf is not None and cf.quality >= self.cf_learn_above:
-                self._run(self._update_correlation, frame.image, posterior.box)   # overlaps what follows
         if self.t_ % self.update_every == 0 and self.buffer_:
-            self._train(self.svm_iter)
+            # on the worker, first: the next frame's superpixels do not need w, only its scores do
+            self._svm_task = self._submit(self._train, self.svm_iter, self.t_)
+        cf = self.cf_result_
+        if (data is not None and posterior.status == TRACKING and posterior.confidence >= self.learn_above
+                and cf is not None and cf.quality >= self.cf_learn_above):
+            self._cf_tasks.append(self._submit(self._update_correlation, frame.image, posterior.box))

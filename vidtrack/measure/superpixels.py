@@ -132,16 +132,28 @@ def slic_labels(image: np.ndarray, *, region_size: int = 8, ruler: float = 10.0,
     return compact[labels]
 
 
+def _riu2_table() -> np.ndarray:
+    """Rotation-invariant uniform code (``0 .. 9``) of each 8-bit LBP pattern: its number of ones if it has
+    at most two 0/1 transitions around the circle, else 9."""
+    codes = np.arange(256)
+    bits = (codes[:, None] >> np.arange(8)) & 1
+    transitions = np.sum(bits != np.roll(bits, 1, axis=1), axis=1)
+    return np.where(transitions <= 2, bits.sum(axis=1), 9).astype(np.int64)
+
+
+_RIU2 = _riu2_table()
+
+
 def _lbp_codes(grey: np.ndarray) -> np.ndarray:
     """Rotation-invariant uniform LBP(8, 1) codes in ``0 .. 9`` (Ojala et al. 2002)."""
-    g = np.pad(grey.astype(np.int16), 1, mode="edge")
+    g = np.pad(grey, 1, mode="edge")
     c = g[1:-1, 1:-1]
     h, w = c.shape
     offsets = [(-1, -1), (-1, 0), (-1, 1), (0, 1), (1, 1), (1, 0), (1, -1), (0, -1)]
-    bits = np.stack([(g[1 + dy:1 + dy + h, 1 + dx:1 + dx + w] >= c) for dy, dx in offsets]).astype(np.uint8)
-    ones = bits.sum(axis=0)
-    transitions = (bits != np.roll(bits, 1, axis=0)).sum(axis=0)
-    return np.where(transitions <= 2, ones, 9).astype(np.int64)
+    pattern = np.zeros((h, w), np.uint8)
+    for bit, (dy, dx) in enumerate(offsets):   # the 8-bit pattern, then one table look-up
+        pattern |= (g[1 + dy:1 + dy + h, 1 + dx:1 + dx + w] >= c).view(np.uint8) << np.uint8(bit)
+    return _RIU2[pattern]
 
 
 def superpixel_descriptors(image: np.ndarray, labels: np.ndarray, n_labels: int | None = None) -> np.ndarray:
