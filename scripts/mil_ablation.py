@@ -40,6 +40,7 @@ CONFIGS = {
     "default, ncc refinement instead of cf": dict(refine="ncc"),
     "default - cf constraint (DSST filter)": dict(cf_constrained=False),
     "default - cf colour merge": dict(cf_colour_merge=0.0),
+    "default - cf sample reuse (re-cut window)": dict(cf_reuse_sample=False),
     "default": dict(),
 }
 
