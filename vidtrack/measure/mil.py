@@ -87,6 +87,12 @@ ablation in the README shows what each buys):
   0 as the match falls from ``ncc_min`` to ``ncc_floor``; with no inliers
   the template is searched over the covariance-enlarged window and accepted
   above ``ncc_reacquire``;
+* speed, without changing a result: the correlation filter's update and
+  detection and the Pegasos updates run on a second thread (``cf_thread``)
+  while this one computes the superpixels, SVM scores and graph cut; and
+  (this one does change results, chosen on the tune split) the filter
+  learns from its detection's window shifted in the Fourier domain
+  (``cf_reuse_sample``) instead of a second, re-cut window;
 * the measurement noise ``r_centre = 0.08`` (the refined centre is more
   precise than a superpixel centroid); while lost the velocities decay by
   ``coast_damping = 0.5`` per frame: a long coast on a velocity learned just
