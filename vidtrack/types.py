@@ -194,7 +194,10 @@ class Superpixels:
 
     ``labels`` ``(h, w) int`` covers ``search_region``; ``features``
     ``(K, D)``; ``scores`` ``(K,)`` classifier scores; ``inliers`` ``(K,)``
-    bool; ``box`` the box measured from the inliers (None when there are none).
+    bool; ``box`` the box measured from the inliers (None when there are none);
+    ``present``: another cue of the measurer (``mil``'s correlation filter)
+    sees the target at the predicted box although the frame gives no usable
+    measurement (the filter then predicts only, but does not call it lost).
     """
 
     labels: np.ndarray
@@ -205,6 +208,7 @@ class Superpixels:
     quality: float = 1.0
     search_region: Box | None = None
     stages: Mapping[str, Any] = field(default_factory=dict)
+    present: bool = False
 
 
 Measurement = PointMeasurement | ScoreMap | Detections | Superpixels

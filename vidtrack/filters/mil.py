@@ -159,9 +159,12 @@ class MILKalmanFilter:
                 self.x_, self.P_ = result.x, result.P
                 self._clamp()
                 status = TRACKING
+        scalars["measured"] = float(status == TRACKING)
         if status == LOST:
             self._coast()
             quality = min(quality, self.lost_below * 0.99)
+            if getattr(measurement, "present", False):   # predicted only, but the target is there: not lost
+                status = TRACKING
         cov = self.C_ @ self.P_ @ self.C_.T
         self.estimate_ = Estimate(self._box(), cov, float(np.clip(quality, 0.0, 1.0)), status, scalars)
         return self.estimate_
