@@ -204,6 +204,15 @@ def test_shift_cells_moves_features_by_whole_and_fractional_cells():
     assert set(np.argsort(half[13, :, 0])[-2:]) == {9, 10}
 
 
+def _detected_once(constrained, reuse, img0, img1, box0):
+    """A filter learned on ``img0``'s ``box0`` that has searched ``img1`` around it."""
+    cf = CorrelationFilter(padding=4.0, window_cells=40, constrained=constrained, colour_merge=0.3,
+                           reuse_sample=reuse, scale_filter=False)
+    cf.initialize(img0, box0)
+    cf.detect(img1, box0.center, box0.size)
+    return cf
+
+
 @pytest.mark.parametrize("constrained", [False, True])
 def test_reusing_the_detection_window_matches_a_recut_window(constrained):
     """reuse_sample learns from the detection's window; with no shift that is exactly the re-cut window."""
@@ -211,13 +220,7 @@ def test_reusing_the_detection_window_matches_a_recut_window(constrained):
     img0, patch = scene(rng, (150, 110), (40, 48))
     img1, _ = scene(rng, (154, 112), (40, 48), patch)
     box0 = Box.from_center(150, 110, 40, 48)
-    filters = {}
-    for reuse in (False, True):
-        cf = CorrelationFilter(padding=4.0, window_cells=40, constrained=constrained, colour_merge=0.3,
-                               reuse_sample=reuse, scale_filter=False)
-        cf.initialize(img0, box0)
-        cf.detect(img1, box0.center, box0.size)
-        filters[reuse] = cf
+    filters = {reuse: _detected_once(constrained, reuse, img0, img1, box0) for reuse in (False, True)}
     at_window = Box.from_center(*box0.center, *box0.size)     # learn where the window was cut: no shift
     for cf in filters.values():
         cf.update(img1, at_window)
@@ -228,10 +231,7 @@ def test_reusing_the_detection_window_matches_a_recut_window(constrained):
     img2, _ = scene(rng, (158, 115), (40, 48), patch)
     found = {}
     for reuse in (False, True):
-        cf = CorrelationFilter(padding=4.0, window_cells=40, constrained=constrained, colour_merge=0.3,
-                               reuse_sample=reuse, scale_filter=False)
-        cf.initialize(img0, box0)
-        cf.detect(img1, box0.center, box0.size)
+        cf = _detected_once(constrained, reuse, img0, img1, box0)
         cf.update(img1, Box.from_center(154, 112, *box0.size))
         found[reuse] = cf.detect(img2, (154, 112), box0.size).centre
     assert np.linalg.norm(found[True] - found[False]) < 1.0

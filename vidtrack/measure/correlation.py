@@ -434,7 +434,11 @@ class CorrelationFilter:
 
     def features(self, patch: np.ndarray) -> np.ndarray:
         """Windowed cell features ``(h, w, d)`` of a window resampled to ``out_size_``."""
-        return cell_features(patch, cell=self.cell, colour=self.colour) * self.cos_[:, :, None]
+        return self.taper(cell_features(patch, cell=self.cell, colour=self.colour))
+
+    def taper(self, features: np.ndarray) -> np.ndarray:
+        """Cell features ``(h, w, d)`` of a window times the cosine window."""
+        return features * self.cos_[:, :, None]
 
     def patch(self, image: np.ndarray, centre, box_size) -> np.ndarray:
         """The window around ``centre`` for a box of ``box_size``, resampled to ``out_size_`` pixels."""
@@ -477,7 +481,7 @@ class CorrelationFilter:
             if self.colour_model_ is not None:
                 self.colour_model_.update(patch, self.box_cells_ * self.cell, rate=colour_rate,
                                           offset=shift * self.cell, index=index)
-            f = fft.rfft2(shift_cells(raw, shift) * self.cos_[:, :, None], axes=(0, 1))
+            f = fft.rfft2(self.taper(shift_cells(raw, shift)), axes=(0, 1))
         if self.constrained:
             self.model_fft_ = running_average((self.model_fft_,), (f,), rate)[0]
             first = self.admm_state_ is None
@@ -492,8 +496,11 @@ class CorrelationFilter:
         if self.quality_from == "target":
             self.target_filter_fft_ = fft.rfft2(self.spatial_filter(target_only=True), axes=(0, 1))
 
-    def respond(self, image: np.ndarray, centre, box_size, scale: float = 1.0) -> tuple[np.ndarray, np.ndarray]:
-        """The circular response of the window of ``box_size * scale`` around ``centre``, and the window's spectrum.
+    def respond(self, image: np.ndarray, centre, box_size, scale: float = 1.0) -> tuple[np.ndarray, np.ndarray, tuple]:
+        """The circular response of the window of ``box_size * scale`` around ``centre``, its spectrum and sample.
+
+        The sample ``(centre, size, patch, raw cell features, colour bins)`` is
+        what :meth:`update` reuses (``reuse_sample``).
 
         With ``colour_merge`` the response is Staple's merge (eq. 22) of the
         filter's and the colour histograms' (at the same shifts).
@@ -501,7 +508,7 @@ class CorrelationFilter:
         size = np.asarray(box_size, float) * scale
         patch = self.patch(image, centre, size)
         raw = cell_features(patch, cell=self.cell, colour=self.colour)
-        z = fft.rfft2(raw * self.cos_[:, :, None], axes=(0, 1))
+        z = fft.rfft2(self.taper(raw), axes=(0, 1))
         response = correlation_response(self.filter_fft_, z, self.shape_)
         index = None
         if self.colour_model_ is not None:
@@ -510,8 +517,7 @@ class CorrelationFilter:
                                                  index=index)
             a = self.colour_merge
             response = fft.ifftshift((1.0 - a) * fft.fftshift(response) + a * colour)
-        self.sample_ = (np.asarray(centre, float), size, patch, raw, index)   # for update (reuse_sample)
-        return response, z
+        return response, z, (np.asarray(centre, float), size, patch, raw, index)
 
     def _reusable_shift(self, sample, box: Box) -> np.ndarray | None:
         """The shift ``(dx, dy)`` in cells from ``sample``'s window centre to ``box``, if the window can be reused."""
@@ -531,11 +537,11 @@ class CorrelationFilter:
         scales = self.scale_factors if scales is None else scales
         best = None
         for s in scales:
-            response, z = self.respond(image, centre, box_size, s)
+            response, z, sample = self.respond(image, centre, box_size, s)
             shift, index, peak = subpixel_peak(response)
             score = peak * (1.0 if s == 1.0 else self.scale_penalty)
             if best is None or score > best[0]:
-                best = (score, s, response, shift, index, peak, z, self.sample_)
+                best = (score, s, response, shift, index, peak, z, sample)
         _, s, response, shift, index, peak, z, self.last_sample_ = best
         step = self.cell_step(np.asarray(box_size, float) * s)
         found = np.asarray(centre, float) + shift * step

@@ -495,12 +495,12 @@ class MILMeasurer:
 
     def _wait_svm(self) -> None:
         """Wait for a Pegasos update running on the worker (the scores and the training set need it)."""
-        task, self._svm_task = getattr(self, "_svm_task", None), None
+        task, self._svm_task = self._svm_task, None
         if task is not None:
             self._result([task], "svm (wait)")
 
     def _wait_correlation(self) -> CorrelationResult | None:
-        tasks, self._cf_tasks = getattr(self, "_cf_tasks", []), []
+        tasks, self._cf_tasks = self._cf_tasks, []
         return self._result(tasks, "correlation (wait)") if tasks else None
 
     def _wait_all(self) -> None:
@@ -509,7 +509,7 @@ class MILMeasurer:
 
     def _searching(self, prior: Estimate) -> bool:
         """The last frame was only predicted (lost, or kept ``tracking`` by ``cf_present``): search as when lost."""
-        return prior.status == LOST or getattr(self, "coasting_", False)
+        return prior.status == LOST or self.coasting_
 
     def _background_tic(self, name: str, start: float) -> None:
         """Time a worker task: in ``cf_timings_`` when it runs in the worker thread, else in ``timings_``."""
@@ -520,20 +520,20 @@ class MILMeasurer:
         self.cf_.update(image, box)
         self._background_tic("correlation", t0)
 
-    def _correlate(self, frame: Frame, prior: Estimate, lost_run: int) -> CorrelationResult:
-        """The correlation filter's detection around the prior; after a long loss, around the frame's best peak.
+    def _correlate(self, frame: Frame, prior: Estimate, whole_frame: bool) -> CorrelationResult:
+        """The correlation filter's detection around the prior; with ``whole_frame``, around the frame's best peak.
 
-        After ``global_after`` lost frames, every ``global_every`` frames,
-        the target-only filter is slid over the whole frame and the window is
-        searched around its best peak.  Before that a loss is taken for an
-        occlusion: only the window around the prediction is searched (a
-        look-alike elsewhere must not take over while the target is hidden).
+        ``measure`` asks for the whole frame after ``global_after`` lost
+        frames, every ``global_every`` frames: the target-only filter is slid
+        over the whole frame and the window is searched around its best peak.
+        Before that a loss is taken for an occlusion: only the window around
+        the prediction is searched (a look-alike elsewhere must not take over
+        while the target is hidden).  Runs on the worker: it reads only its arguments and the filter.
         """
         t0 = time.perf_counter()
         size = prior.box.size
         centre = prior.box.center
-        if (self._searching(prior) and self.redetect and lost_run >= self.global_after
-                and lost_run % max(self.global_every, 1) == 0):
+        if whole_frame:
             whole = np.array([frame.width, frame.height], float)
             centre = self.cf_.search(frame.image, whole / 2.0, whole, size).centre   # target only: no stale context
         result = self.cf_.detect(frame.image, centre, size)
@@ -692,14 +692,17 @@ class MILMeasurer:
         sigma = np.zeros(2)
         if prior.covariance is not None:
             sigma = np.sqrt(np.maximum(np.diag(prior.covariance)[:2], 0.0))
-        self.lost_run_ = self.lost_run_ + 1 if self._searching(prior) else 0
+        searching = self._searching(prior)
+        self.lost_run_ = self.lost_run_ + 1 if searching else 0
+        whole_frame = (searching and self.redetect and self.lost_run_ >= self.global_after
+                       and self.lost_run_ % max(self.global_every, 1) == 0)
         # the correlation filter (a second thread, see cf_thread) and the superpixel side run side by side
         if self.cf_ is not None:
-            self._cf_tasks.append(self._submit(self._correlate, frame, prior, self.lost_run_))
+            self._cf_tasks.append(self._submit(self._correlate, frame, prior, whole_frame))
         found = self._find_inliers(frame, prior, sigma)
         cf = self._wait_correlation()
         self.cf_result_ = cf
-        if (cf is not None and self.redetect and self._searching(prior) and cf.quality >= self.cf_reacquire
+        if (cf is not None and self.redetect and searching and cf.quality >= self.cf_reacquire
                 and np.linalg.norm(cf.centre - prior.box.center) > 0.5 * prior.box.scale):
             # re-detection: the correlation filter proposes, the superpixels and the SVM verify there
             prior = replace(prior, box=Box.from_center(*cf.centre, *prior.box.size))
@@ -784,7 +787,8 @@ class MILMeasurer:
         self._wait_svm()   # the training set is not touched while Pegasos runs on the worker
         self.coasting_ = posterior.scalars.get("measured", 1.0) == 0.0
         data = self.last_
-        if data is not None and posterior.status == TRACKING and posterior.confidence >= self.learn_above:
+        confident = data is not None and posterior.status == TRACKING and posterior.confidence >= self.learn_above
+        if confident:
             frac = sp.fraction_inside(data.labels, data.region.box_to_region(posterior.box), len(data.scores))
             y = np.zeros(len(frac), dtype=int)
             y[(frac >= self.positive_fraction) & data.inliers & (data.scores > self.positive_margin)] = 1
@@ -801,6 +805,5 @@ class MILMeasurer:
             # on the worker, first: the next frame's superpixels do not need w, only its scores do
             self._svm_task = self._submit(self._train, self.svm_iter, self.t_)
         cf = self.cf_result_
-        if (data is not None and posterior.status == TRACKING and posterior.confidence >= self.learn_above
-                and cf is not None and cf.quality >= self.cf_learn_above):
+        if confident and cf is not None and cf.quality >= self.cf_learn_above:
             self._cf_tasks.append(self._submit(self._update_correlation, frame.image, posterior.box))
