@@ -386,6 +386,11 @@ class CorrelationFilter:
         and a quarter window of its centre.  A departure from DSST and Staple
         for speed (one feature extraction a frame instead of two); the shifted
         sample's cosine taper and border differ from a re-cut one by the shift.
+    scale_update
+        The scale filter learns at every :meth:`update` (DSST).  Until this
+        switch, a constrained filter never updated its scale filter after the
+        first frame (the check for "not the first sample" looked at the
+        unconstrained filter's numerator only): False restores that.
     """
 
     padding: float = 2.5
@@ -410,6 +415,7 @@ class CorrelationFilter:
     admm_mu: float = 0.01
     reuse_sample: bool = False
     reuse_tolerance: float = 0.1
+    scale_update: bool = True
 
     # -- geometry -----------------------------------------------------
 
@@ -466,7 +472,8 @@ class CorrelationFilter:
     def update(self, image: np.ndarray, box: Box, *, rate: float | None = None) -> None:
         """Learn from the window around ``box`` (DSST eq. 5), and the scale filter from the box."""
         rate = self.learning_rate if rate is None else rate
-        if self.scale_ is not None and self.numerator_ is not None:
+        learned = self.numerator_ is not None or self.model_fft_ is not None   # not the first sample
+        if self.scale_ is not None and learned and self.scale_update:
             self.scale_.update(image, box, rate=None if rate < 1.0 else rate)
         sample, self.last_sample_ = self.last_sample_, None
         shift = self._reusable_shift(sample, box) if self.reuse_sample else None

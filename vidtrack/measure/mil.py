@@ -88,8 +88,13 @@ ablation in the README shows what each buys):
   the template is searched over the covariance-enlarged window and accepted
   above ``ncc_reacquire``;
 * speed, without changing a result: the correlation filter's update and
-  detection and the Pegasos updates run on a second thread (``cf_thread``)
-  while this one computes the superpixels, SVM scores and graph cut; and
+  detection run on a second thread (``cf_thread``) while this one computes
+  the superpixels, SVM scores and graph cut (and the Pegasos updates, or
+  with ``svm_thread`` on the second thread); the per-pixel loops (SLIC, the
+  superpixel descriptors and statistics, the HOG histograms, Pegasos'
+  iterations) are compiled with Numba and release the GIL, so the two
+  threads really run side by side (the compiled SLIC is the same algorithm
+  as OpenCV's, not the same superpixels: ``slic="opencv"`` gives those); and
   (this one does change results, chosen on the tune split) the filter
   learns from its detection's window shifted in the Fourier domain
   (``cf_reuse_sample``) instead of a second, re-cut window;
@@ -248,6 +253,9 @@ class MILMeasurer:
         About this many superpixels across the box side.
     slic_iterations, slic_ruler
         SLIC k-means iterations and compactness.
+    slic
+        The SLIC implementation (:func:`~vidtrack.measure.superpixels.slic_labels`):
+        ``"numba"`` (compiled, GIL-free) or ``"opencv"`` (``ximgproc``).
     positive_fraction
         Area fraction inside the box for a positive (paper: 0.7).
     negative_fraction
@@ -351,6 +359,12 @@ class MILMeasurer:
         computes the superpixels, the SVM scores and the graph cut (they meet
         at the fusion).  Each task reads what it would read in one thread, so
         the results are the same as with ``False``; only the wall clock differs.
+    svm_thread
+        With ``cf_thread``, run the Pegasos updates in the second thread too
+        (before the correlation filter's tasks), instead of in ``learn`` on
+        this one.  Off by default since the correlation filter alone keeps
+        the second thread busier than the superpixels keep this one; the
+        results are the same either way.
     ncc_radius
         The refinement searches this fraction of the box size around the inlier-based centre.
     ncc_min
@@ -377,7 +391,7 @@ class MILMeasurer:
 
     def __init__(self, *, lam: float = 3.0, pad: float = 0.6, max_extra: float = 1.0,
                  object_pixels: float = 40.0, superpixels_per_side: float = 3.5, slic_iterations: int = 4,
-                 slic_ruler: float = 10.0, positive_fraction: float = 0.7, negative_fraction: float = 0.3,
+                 slic_ruler: float = 10.0, slic: str = "numba", positive_fraction: float = 0.7, negative_fraction: float = 0.3,
                  gamma_max: int = 25, update_every: int = 6, svm_lam: float = 1e-3, svm_iter: int = 40,
                  svm_init_iter: int = 1000, svm_max_t: int | None = 2000, svm_batch: int | None = 256,
                  keep_initial: bool = True, anchor_weight: int = 1,
@@ -393,7 +407,7 @@ class MILMeasurer:
                  cf_learn_above: float = 0.2, cf_learning_rate: float = 0.02, cf_padding: float = 4.0, cf_window_cells: int = 40,
                  cf_constrained: bool = True, cf_colour_merge: float = 0.3, cf_options: dict | None = None, global_after: int = 30, global_every: int = 5, redetect: bool = True,
                  cf_reuse_sample: bool = True, cf_present: float | None = 0.5,
-                 cf_thread: bool = True, rng: np.random.Generator | int | None = None) -> None:
+                 cf_thread: bool = True, svm_thread: bool = False, rng: np.random.Generator | int | None = None) -> None:
         self.lam = lam
         self.pad = pad
         self.max_extra = max_extra
@@ -401,6 +415,7 @@ class MILMeasurer:
         self.superpixels_per_side = superpixels_per_side
         self.slic_iterations = slic_iterations
         self.slic_ruler = slic_ruler
+        self.slic = slic
         self.positive_fraction = positive_fraction
         self.negative_fraction = negative_fraction
         self.gamma_max = gamma_max
@@ -450,6 +465,7 @@ class MILMeasurer:
         self.cf_reuse_sample = cf_reuse_sample
         self.cf_present = cf_present
         self.cf_thread = cf_thread
+        self.svm_thread = svm_thread
         self.rng = rng
         self._worker: ThreadPoolExecutor | None = None
         self._cf_tasks: list[Future] = []
@@ -552,7 +568,7 @@ class MILMeasurer:
         side = float(np.sqrt(size[0] * size[1])) * region.scale
         region_size = int(np.clip(round(side / self.superpixels_per_side), 4, 20))
         labels = sp.slic_labels(region.image, region_size=region_size, ruler=self.slic_ruler,
-                                iterations=self.slic_iterations)
+                                iterations=self.slic_iterations, implementation=self.slic)
         t0 = self._tic("superpixels", t0)
         K = int(labels.max()) + 1
         desc = sp.superpixel_descriptors(region.image, labels, K)
@@ -575,7 +591,7 @@ class MILMeasurer:
         if np.any(keep):
             self.buffer_.append((features[keep], labels[keep], t))
 
-    def _train(self, n_iter: int, now: int) -> None:
+    def _train(self, n_iter: int, now: int, background: bool = True) -> None:
         """Pegasos on the training triples of the last ``gamma_max`` frames before frame ``now`` (and the anchor)."""
         t0 = time.perf_counter()
         horizon = now - self.gamma_max
@@ -588,7 +604,10 @@ class MILMeasurer:
         y = np.concatenate([s[1] for s in sets])
         if np.any(y > 0) and np.any(y < 0):
             self.svm_.partial_fit(X, y, n_iter=n_iter)
-        self._background_tic("svm training", t0)
+        if background:
+            self._background_tic("svm training", t0)
+        else:
+            self._tic("svm training", t0)
 
     # -- Measurer protocol -----------------------------------------------
 
@@ -802,8 +821,10 @@ class MILMeasurer:
                 if patch is not None:
                     self.template_ = (1.0 - self.ncc_rate) * self.template_ + self.ncc_rate * patch
         if self.t_ % self.update_every == 0 and self.buffer_:
-            # on the worker, first: the next frame's superpixels do not need w, only its scores do
-            self._svm_task = self._submit(self._train, self.svm_iter, self.t_)
+            if self.svm_thread:   # on the worker, first: the next frame's superpixels do not need w, only its scores do
+                self._svm_task = self._submit(self._train, self.svm_iter, self.t_)
+            else:                 # here: the worker's correlation filter is the longer of the two paths
+                self._train(self.svm_iter, self.t_, background=False)
         cf = self.cf_result_
         if confident and cf is not None and cf.quality >= self.cf_learn_above:
             self._cf_tasks.append(self._submit(self._update_correlation, frame.image, posterior.box))
