@@ -27,16 +27,60 @@ from dataclasses import dataclass
 from functools import lru_cache
 
 import cv2
+import numba
 import numpy as np
 
 
+@numba.njit(cache=True, nogil=True)
+def _update_histograms(index, obj, bg, object_hist, background_hist, table, rate):
+    """Staple's running histograms in place (eq. 14's ``rho``), and the object-probability table.
+
+    ``object_hist <- (1 - rate) object_hist + rate h_O`` with ``h_O`` the
+    normalised histogram of ``index`` under ``obj`` (likewise the
+    background), then ``table = object / (object + background + 1e-9)``.
+    Compiled: one pass over the pixels, none of ``np.bincount``'s
+    ``bins ** 3``-long temporaries, no GIL.
+    """
+    n = object_hist.shape[0]
+    count_obj = np.zeros(n)
+    count_bg = np.zeros(n)
+    n_obj = 0
+    n_bg = 0
+    H, W = index.shape
+    for y in range(H):
+        for x in range(W):
+            if obj[y, x]:
+                count_obj[index[y, x]] += 1.0
+                n_obj += 1
+            if bg[y, x]:
+                count_bg[index[y, x]] += 1.0
+                n_bg += 1
+    n_obj = max(n_obj, 1)
+    n_bg = max(n_bg, 1)
+    for i in range(n):
+        object_hist[i] = (1.0 - rate) * object_hist[i] + rate * (count_obj[i] / n_obj)
+        background_hist[i] = (1.0 - rate) * background_hist[i] + rate * (count_bg[i] / n_bg)
+        table[i] = np.float32(object_hist[i] / (object_hist[i] + background_hist[i] + 1e-9))
+
+
 def colour_bins(patch: np.ndarray, bins: int) -> np.ndarray:
-    """Joint colour-bin index ``(H, W)`` int of a BGR (or grey) uint8 patch, ``bins`` levels per channel."""
+    """Joint colour-bin index ``(H, W)`` int32 of a BGR (or grey) uint8 patch, ``bins`` levels per channel."""
     shift = int(round(np.log2(256 // bins)))
-    q = (patch >> shift).astype(np.int32)
-    if q.ndim == 2:
-        return q * (bins * bins + bins + 1)   # grey: the diagonal of the colour cube
-    return (q[:, :, 0] * bins + q[:, :, 1]) * bins + q[:, :, 2]
+    if patch.ndim == 2:
+        return (patch >> shift).astype(np.int32) * (bins * bins + bins + 1)   # grey: the diagonal of the colour cube
+    return _joint_bins(np.ascontiguousarray(patch), shift, bins)
+
+
+@numba.njit(cache=True, nogil=True)
+def _joint_bins(patch, shift, bins):
+    """``((b >> shift) bins + (g >> shift)) bins + (r >> shift)`` per pixel (compiled, no GIL)."""
+    H, W = patch.shape[0], patch.shape[1]
+    out = np.empty((H, W), np.int32)
+    for y in range(H):
+        for x in range(W):
+            out[y, x] = ((np.int32(patch[y, x, 0] >> shift) * bins + np.int32(patch[y, x, 1] >> shift)) * bins
+                         + np.int32(patch[y, x, 2] >> shift))
+    return out
 
 
 def box_masks(shape: tuple[int, int], box_size, *, inner: float = 0.1, context: float = 1.0,
@@ -111,15 +155,12 @@ class ColourHistogramModel:
             obj, bg = _fixed_masks(index.shape, float(box_size[0]), float(box_size[1]), self.inner, self.context)
         else:
             obj, bg = box_masks(index.shape, box_size, inner=self.inner, context=self.context, offset=(dx, dy))
-        n = self.bins ** 3
-        new_obj = np.bincount(index[obj], minlength=n) / max(int(obj.sum()), 1)
-        new_bg = np.bincount(index[bg], minlength=n) / max(int(bg.sum()), 1)
         if self.object_ is None or rate >= 1.0:
-            self.object_, self.background_ = new_obj, new_bg
-        else:
-            self.object_ = (1.0 - rate) * self.object_ + rate * new_obj
-            self.background_ = (1.0 - rate) * self.background_ + rate * new_bg
-        self.table_ = (self.object_ / (self.object_ + self.background_ + 1e-9)).astype(np.float32)   # eq. 14
+            self.object_ = np.zeros(self.bins ** 3)
+            self.background_ = np.zeros(self.bins ** 3)
+            rate = 1.0
+        self.table_ = np.empty(self.bins ** 3, np.float32)
+        _update_histograms(index, obj, bg, self.object_, self.background_, self.table_, float(rate))
 
     def likelihood(self, patch: np.ndarray, *, index: np.ndarray | None = None) -> np.ndarray:
         """``beta(u)``: the object probability of every pixel, ``(H, W)`` float32 (eq. 14)."""
@@ -140,3 +181,9 @@ class ColourHistogramModel:
         rows = np.clip(np.round(H / 2.0 + (np.arange(h) - h // 2) * step).astype(int), 0, H - 1)
         cols = np.clip(np.round(W / 2.0 + (np.arange(w) - w // 2) * step).astype(int), 0, W - 1)
         return mean[np.ix_(rows, cols)]
+
+
+# Load the compiled kernels at import, not inside the first tracked frame (see vidtrack.measure.slic).
+_model = ColourHistogramModel(bins=4)
+_model.update(np.zeros((8, 8, 3), np.uint8), (4, 4), rate=1.0)
+del _model
