@@ -1,4 +1,4 @@
-"""The Numba-compiled kernels against what they replace: SLIC, HOG histograms, the scale filter's windows, colour bins."""
+"""The Numba-compiled kernels against what they replace: SLIC, HOG histograms, colour bins."""
 
 import cv2
 import numpy as np
@@ -8,7 +8,6 @@ from scipy import ndimage
 from vidtrack.measure import superpixels as sp
 from vidtrack.measure.colour_model import colour_bins
 from vidtrack.measure.features import orientation_cells
-from vidtrack.measure.image import cut_window, cut_windows
 from vidtrack.measure.slic import slic
 
 
@@ -99,23 +98,6 @@ def test_compiled_orientation_histograms_match_the_numpy_reference(shape):
     rng = np.random.default_rng(2)
     grey = cv2.GaussianBlur(rng.integers(0, 255, shape).astype(np.float32), (0, 0), 1.5)
     assert orientation_cells(grey) == pytest.approx(_orientation_cells_reference(grey), abs=1e-5)
-
-
-@pytest.mark.parametrize("centre, size, model", [
-    ((187.5, 145.0), (91.0, 40.0), (36, 16)),    # shrinking: OpenCV's area weights
-    ((300.0, 230.0), (50.0, 20.0), (36, 12)),    # shrinking, partly outside the frame (border replicated)
-    ((10.0, 20.0), (30.0, 62.0), (16, 36)),      # shrinking, outside on the left and top
-    ((160.0, 120.0), (15.0, 14.0), (24, 24)),    # growing: linear, within one grey level
-])
-def test_the_scale_filter_windows_match_one_resize_each(centre, size, model):
-    rng = np.random.default_rng(4)
-    img = cv2.GaussianBlur(rng.integers(0, 256, (240, 320, 3), dtype=np.uint8), (0, 0), 2.0)
-    sizes = np.array(size)[None] * (1.02 ** (np.arange(17) - 8))[:, None]
-    one_each = np.stack([cut_window(img, centre, s, model) for s in sizes]).astype(int)
-    batched = cut_windows(img, centre, sizes, model).astype(int)
-    assert batched.shape == one_each.shape == (17, model[1], model[0], 3)
-    assert np.abs(batched - one_each).max() <= 1                       # rounding of the last grey level only
-    assert np.mean(batched != one_each) < (0.02 if size[0] > model[0] else 0.2)
 
 
 def test_compiled_colour_bins_match_numpy():

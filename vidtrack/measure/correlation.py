@@ -59,7 +59,7 @@ from scipy import fft
 from ..types import Box, Estimate, Frame, ScoreMap
 from .colour_model import ColourHistogramModel, colour_bins
 from .features import cell_features
-from .image import cut_window, cut_windows
+from .image import cut_window
 
 # ------------------------------------------------------------------ pure maths
 
@@ -285,13 +285,8 @@ class ScaleFilter:
     def sample(self, image: np.ndarray, centre, size) -> np.ndarray:
         """The ``(S, D)`` multi-scale sample around ``centre`` for a box of ``size``."""
         # the S resampled patches stacked into one image: one feature pass instead of S
-        sizes = np.asarray(size, float)[None, :] * self.factors_[:, None]
-        if image.ndim == 3 and image.shape[2] == 3:
-            patches = cut_windows(image, centre, sizes, self.model_size_)
-            stacked = patches.reshape(-1, *patches.shape[2:])
-        else:
-            stacked = np.concatenate([cut_window(image, centre, sz, self.model_size_) for sz in sizes], axis=0)
-        stacked = cell_features(stacked, cell=self.cell, colour=self.colour)
+        patches = [cut_window(image, centre, np.asarray(size, float) * f, self.model_size_) for f in self.factors_]
+        stacked = cell_features(np.concatenate(patches, axis=0), cell=self.cell, colour=self.colour)
         return stacked.reshape(self.n_scales, -1) * self.window_[:, None]
 
     def update(self, image: np.ndarray, box: Box, *, rate: float | None = None) -> None:

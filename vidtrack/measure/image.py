@@ -7,7 +7,6 @@ keyword-only options, plain ndarrays out.
 from __future__ import annotations
 
 import cv2
-import numba
 import numpy as np
 
 
@@ -44,104 +43,6 @@ def cut_window(image: np.ndarray, centre, size, out_size: tuple[int, int]) -> np
         return np.ascontiguousarray(patch)
     shrink = patch.shape[1] * patch.shape[0] > ow * oh
     return cv2.resize(patch, (ow, oh), interpolation=cv2.INTER_AREA if shrink else cv2.INTER_LINEAR)
-
-
-def cut_windows(image: np.ndarray, centre, sizes: np.ndarray, out_size: tuple[int, int]) -> np.ndarray:
-    """:func:`cut_window` for several window sizes around one centre, in one compiled call.
-
-    ``sizes`` ``(S, 2)`` window sizes ``(w, h)``; returns ``(S, h', w', 3)``
-    uint8 for a ``(H, W, 3)`` uint8 image (``out_size = (w', h')``).  Each
-    window is rounded to whole pixels as :func:`cut_window` rounds it, its
-    border replicated, and resampled separably per axis: area averaging
-    where the axis shrinks (OpenCV's ``INTER_AREA`` weights), linear
-    interpolation between pixel centres where it grows (``INTER_LINEAR``);
-    results agree with :func:`cut_window` to within rounding of the last
-    grey level.  For the scale filter's ``n_scales`` windows a frame: one
-    call that releases the GIL instead of ``n_scales`` resizes.
-    """
-    sizes = np.asarray(sizes, float)
-    w = np.maximum(np.round(sizes[:, 0]), 1).astype(np.int64)
-    h = np.maximum(np.round(sizes[:, 1]), 1).astype(np.int64)
-    x0 = np.round(float(centre[0]) - w / 2.0).astype(np.int64)
-    y0 = np.round(float(centre[1]) - h / 2.0).astype(np.int64)
-    return _resample_windows(np.ascontiguousarray(image), x0, y0, w, h, int(out_size[0]), int(out_size[1]))
-
-
-@numba.njit(cache=True, nogil=True)
-def _axis_weights(start, length, out, limit):
-    """Per output index: ``(first source index, weights)`` along one axis, source indices clamped to ``[0, limit)``.
-
-    Area weights (OpenCV's ``INTER_AREA``) when ``length >= out``, else
-    linear interpolation between pixel centres (``INTER_LINEAR``).
-    """
-    scale = length / out
-    if scale >= 1.0:
-        span = int(np.ceil(scale)) + 1
-    else:
-        span = 2
-    index = np.zeros((out, span), np.int64)
-    weight = np.zeros((out, span))
-    for d in range(out):
-        if scale >= 1.0:
-            f1 = d * scale
-            f2 = min(f1 + scale, float(length))
-            cell = f2 - f1
-            k = 0
-            i = int(np.floor(f1))
-            while i < f2 and k < span:
-                lo = max(f1, float(i))
-                hi = min(f2, float(i + 1))
-                if hi > lo:
-                    index[d, k] = min(max(start + i, 0), limit - 1)
-                    weight[d, k] = (hi - lo) / cell
-                    k += 1
-                i += 1
-        else:
-            f = (d + 0.5) * scale - 0.5
-            i = int(np.floor(f))
-            t = f - i
-            if i < 0:
-                i, t = 0, 0.0
-            if i >= length - 1:
-                i, t = length - 1, 0.0
-            index[d, 0] = min(max(start + i, 0), limit - 1)
-            index[d, 1] = min(max(start + min(i + 1, length - 1), 0), limit - 1)
-            weight[d, 0] = 1.0 - t
-            weight[d, 1] = t
-    return index, weight
-
-
-@numba.njit(cache=True, nogil=True)
-def _resample_windows(image, x0, y0, w, h, out_w, out_h):
-    H, W, C = image.shape
-    S = x0.shape[0]
-    out = np.empty((S, out_h, out_w, C), np.uint8)
-    row = np.empty((out_w, C))
-    for s in range(S):
-        xi, xw = _axis_weights(x0[s], w[s], out_w, W)
-        yi, yw = _axis_weights(y0[s], h[s], out_h, H)
-        for dy in range(out_h):
-            for dx in range(out_w):
-                acc0 = 0.0
-                acc1 = 0.0
-                acc2 = 0.0
-                for a in range(yi.shape[1]):
-                    wy = yw[dy, a]
-                    if wy == 0.0:
-                        continue
-                    r = yi[dy, a]
-                    for b in range(xi.shape[1]):
-                        wgt = wy * xw[dx, b]
-                        if wgt == 0.0:
-                            continue
-                        c = xi[dx, b]
-                        acc0 += wgt * image[r, c, 0]
-                        acc1 += wgt * image[r, c, 1]
-                        acc2 += wgt * image[r, c, 2]
-                out[s, dy, dx, 0] = min(max(int(np.rint(acc0)), 0), 255)
-                out[s, dy, dx, 1] = min(max(int(np.rint(acc1)), 0), 255)
-                out[s, dy, dx, 2] = min(max(int(np.rint(acc2)), 0), 255)
-    return out
 
 
 def cut_patch(grey: np.ndarray, centre: np.ndarray, size: tuple[int, int]) -> np.ndarray | None:
@@ -200,6 +101,3 @@ def match_templates(grey: np.ndarray, templates, centre: np.ndarray, radius: np.
     found = np.array([x0 + u + du + tw / 2.0, y0 + v + dv + th / 2.0])
     return found, float(resp[v, u])
 
-
-# Load the compiled kernels at import, not inside the first tracked frame (see vidtrack.measure.slic).
-cut_windows(np.zeros((8, 8, 3), np.uint8), (4.0, 4.0), np.array([[4.0, 4.0], [2.0, 2.0]]), (3, 3))

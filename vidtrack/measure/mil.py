@@ -835,6 +835,10 @@ class MILMeasurer:
         self.coasting_ = posterior.scalars.get("measured", 1.0) == 0.0
         data = self.last_
         confident = data is not None and posterior.status == TRACKING and posterior.confidence >= self.learn_above
+        cf = self.cf_result_
+        if confident and cf is not None and cf.quality >= self.cf_learn_above:
+            # first: the second thread's update and the next frame's detection are the longer path
+            self._cf_tasks.append(self._submit(self._update_correlation, frame.image, posterior.box))
         if confident:
             frac = sp.fraction_inside(data.labels, data.region.box_to_region(posterior.box), len(data.scores))
             y = np.zeros(len(frac), dtype=int)
@@ -849,14 +853,10 @@ class MILMeasurer:
                 if patch is not None:
                     self.template_ = (1.0 - self.ncc_rate) * self.template_ + self.ncc_rate * patch
         if self.t_ % self.update_every == 0 and self.buffer_:
-            if self.svm_thread:   # on the worker, first: the next frame's superpixels do not need w, only its scores do
+            if self.svm_thread:   # on the worker (after the filter's update): the next frame's superpixels do not need w
                 self._svm_task = self._submit(self._train, self.svm_iter, self.t_)
-            else:                 # here: the worker's correlation filter is the longer of the two paths
+            else:                 # here, while the second thread updates the correlation filter
                 self._train(self.svm_iter, self.t_, background=False)
-        cf = self.cf_result_
-        if confident and cf is not None and cf.quality >= self.cf_learn_above:
-            self._cf_tasks.append(self._submit(self._update_correlation, frame.image, posterior.box))
-
 
 # Load the compiled kernel at import, not inside the first tracked frame (see vidtrack.measure.slic).
 locate_inliers(np.zeros((4, 4), np.int64), np.ones(1), np.array([2.0, 2.0]), np.array([2.0, 2.0]))
