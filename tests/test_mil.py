@@ -223,14 +223,16 @@ def test_mil_redetects_a_target_that_leaves_and_reenters_the_frame():
     assert all(np.linalg.norm(s.box.center - path[-1]) < 0.25 * np.sqrt(size.prod()) for s in last)
 
 
-def test_correlation_thread_gives_the_same_track_as_one_thread():
-    """cf_thread only overlaps the filter with the superpixels: boxes and statuses are identical."""
+@pytest.mark.parametrize("options", [{}, {"svm_thread": True}])
+def test_correlation_thread_gives_the_same_track_as_one_thread(options):
+    """cf_thread only overlaps the filter with the superpixels: boxes and statuses are identical (also with
+    Pegasos on the second thread)."""
     patch = _target_patch(5)
     size = np.array([30.0, 36.0])
     path = [np.array([200.0 + 6 * k, 120.0]) for k in range(25)] + [np.array([90.0, 150.0])] * 15
     tracks = {}
     for threaded in (False, True):
-        tracker = build_tracker("mil", seed=0, cf_thread=threaded)
+        tracker = build_tracker("mil", seed=0, cf_thread=threaded, **options)
         tracker.initialize(Frame(0, _textured_scene(size, path[0], patch)), Box.from_center(*path[0], *size))
         states = [tracker.step(Frame(k, _textured_scene(size, c, patch))) for k, c in enumerate(path[1:], start=1)]
         tracks[threaded] = [(s.box.x, s.box.y, s.box.w, s.box.h, s.status) for s in states]
@@ -274,4 +276,5 @@ def test_cf_present_changes_only_the_reported_status():
     assert lost[None] > 0 and lost[0.5] <= lost[None]
     for a, b in zip(runs[None], runs[0.5]):
         assert a.status == b.status or (a.status == "lost" and b.status == "tracking")
+
 
