@@ -41,6 +41,8 @@ CONFIGS = {
     "default - cf constraint (DSST filter)": dict(cf_constrained=False),
     "default - cf colour merge": dict(cf_colour_merge=0.0),
     "default - cf sample reuse (re-cut window)": dict(cf_reuse_sample=False),
+    "default - scale filter learning (frozen at frame 1, as before the fix)": dict(cf_options={"scale_update": False}),
+    "default, OpenCV's SLIC instead of the compiled one": dict(slic="opencv"),
     "default": dict(),
 }
 
