@@ -64,7 +64,7 @@ def main(argv=None) -> int:
         futures = {(i, s, n): pool.submit(run_one, args.dataset, n, args.filter, c, s)
                    for i, c in enumerate(configs) for s in seeds for n in names}
         results = {key: f.result() for key, f in futures.items()}
-    print(f"| config | " + " | ".join(f"seed {s}" for s in seeds) + " | mean | worst seed | widest spreads |")
+    print("| config | " + " | ".join(f"seed {s}" for s in seeds) + " | mean | worst seed | widest spreads |")
     print("|---|" + "---|" * (len(seeds) + 3))
     table = []
     for i, c in enumerate(configs):

@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from vidtrack.learn.pegasos import PegasosSVM, pegasos_step, svm_objective
+from vidtrack.learn.pegasos import PegasosSVM, balanced_weights, pegasos_step, svm_objective
 
 
 def separable_set(rng, n=60):
@@ -62,3 +62,20 @@ def test_untrained_svm_scores_zero_like_w_equal_zero():
     assert np.array_equal(svm.decision_function(np.ones((4, 3))), np.zeros(4))
     svm.partial_fit(np.ones((2, 3)), np.ones(2), n_iter=0)
     assert np.array_equal(svm.decision_function(np.ones((4, 3))), np.zeros(4))
+
+
+@pytest.mark.parametrize("batch_size", [10, None])
+def test_the_compiled_iterations_are_pegasos_step_repeated(batch_size):
+    """PegasosSVM runs its iterations in one compiled call: the same iterates as pegasos_step on the same batches."""
+    rng = np.random.default_rng(6)
+    X, y = separable_set(rng, 80)
+    svm = PegasosSVM(lam=0.05, n_iter=25, batch_size=batch_size, max_t=15, rng=7).partial_fit(X, y)
+    draw = np.random.default_rng(7)
+    Xa = np.hstack([X, np.ones((len(X), 1))])
+    w, total = np.zeros(3), np.zeros(3)
+    for t in range(1, 26):
+        idx = draw.choice(len(y), size=batch_size, replace=False) if batch_size else np.arange(len(y))
+        w = pegasos_step(w, Xa[idx], y[idx], min(t, 15), 0.05, balanced_weights(y)[idx])
+        total += w
+    assert np.allclose(svm.coef_, w, rtol=1e-12, atol=1e-12)
+    assert np.allclose(svm.avg_coef_, total / 25, rtol=1e-12, atol=1e-12)

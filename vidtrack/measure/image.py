@@ -100,4 +100,3 @@ def match_templates(grey: np.ndarray, templates, centre: np.ndarray, radius: np.
         dv = 0.5 * (a - c) / den if den < 0 else 0.0
     found = np.array([x0 + u + du + tw / 2.0, y0 + v + dv + th / 2.0])
     return found, float(resp[v, u])
-
