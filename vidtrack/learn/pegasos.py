@@ -176,7 +176,7 @@ class PegasosSVM:
         if k < len(y):  # A_t: a random mini-batch of k samples per iteration, drawn in order
             batches = np.stack([self.rng_.choice(len(y), size=k, replace=False) for _ in range(n_iter)])
         self.coef_, total = pegasos_steps(self.coef_, Xa, y, np.ones(len(y)) if weights is None else weights,
-                                          batches.astype(np.int64), n_iter, self.t_ + 1,
+                                          batches, n_iter, self.t_ + 1,
                                           0 if self.max_t is None else int(self.max_t), float(self.lam))
         self.t_ += n_iter
         self.avg_coef_ = total / n_iter

@@ -155,11 +155,11 @@ class ColourHistogramModel:
             obj, bg = _fixed_masks(index.shape, float(box_size[0]), float(box_size[1]), self.inner, self.context)
         else:
             obj, bg = box_masks(index.shape, box_size, inner=self.inner, context=self.context, offset=(dx, dy))
-        if self.object_ is None or rate >= 1.0:
+        if self.object_ is None or rate >= 1.0:   # the first sample: the histograms are its own
             self.object_ = np.zeros(self.bins ** 3)
             self.background_ = np.zeros(self.bins ** 3)
+            self.table_ = np.empty(self.bins ** 3, np.float32)
             rate = 1.0
-        self.table_ = np.empty(self.bins ** 3, np.float32)
         _update_histograms(index, obj, bg, self.object_, self.background_, self.table_, float(rate))
 
     def likelihood(self, patch: np.ndarray, *, index: np.ndarray | None = None) -> np.ndarray:

@@ -91,8 +91,8 @@ ablation in the README shows what each buys):
   detection run on a second thread (``cf_thread``) while this one computes
   the superpixels, SVM scores and graph cut (and the Pegasos updates, or
   with ``svm_thread`` on the second thread); the per-pixel loops (SLIC, the
-  superpixel descriptors and statistics, the HOG histograms, Pegasos'
-  iterations) are compiled with Numba and release the GIL, so the two
+  superpixel descriptors and statistics, the inliers' peak and mean shift,
+  the HOG histograms, the colour model, Pegasos' iterations) are compiled with Numba and release the GIL, so the two
   threads really run side by side (the compiled SLIC is the same algorithm
   as OpenCV's, not the same superpixels: ``slic="opencv"`` gives those); and
   (this one does change results, chosen on the tune split) the filter
@@ -220,8 +220,8 @@ def _peak_and_mean_shift(w_pix, smooth, start_u, start_v, box_w, box_h, iteratio
             if value > best:
                 best, v0, u0 = value, v, u
     cu, cv = u0 + 0.5, v0 + 0.5
+    x0 = y0 = x1 = y1 = 0
     mass = 0.0
-    sum_u = sum_v = sum_uu = sum_vv = 0.0
     for _ in range(iterations):
         x0, y0 = int(np.round(cu - box_w / 2)), int(np.round(cv - box_h / 2))
         x1, y1 = int(np.round(cu + box_w / 2)), int(np.round(cv + box_h / 2))
@@ -381,18 +381,17 @@ class MILMeasurer:
         ("missed loss") 0.006, 0.014 / 0.012 / 0.010.
     cf_thread
         Run the correlation filter (its update from the last frame, then its
-        detection in this one) and the Pegasos updates in a second thread:
-        the Pegasos update of ``learn`` runs while this thread cuts the next
-        frame's superpixels (their scores wait for it), the filter while it
-        computes the superpixels, the SVM scores and the graph cut (they meet
-        at the fusion).  Each task reads what it would read in one thread, so
-        the results are the same as with ``False``; only the wall clock differs.
+        detection in this one) in a second thread while this one computes
+        the superpixels, the SVM scores and the graph cut (they meet at the
+        fusion).  Each task reads what it would read in one thread, so the
+        results are the same as with ``False``; only the wall clock differs.
     svm_thread
         With ``cf_thread``, run the Pegasos updates in the second thread too
-        (before the correlation filter's tasks), instead of in ``learn`` on
-        this one.  Off by default since the correlation filter alone keeps
-        the second thread busier than the superpixels keep this one; the
-        results are the same either way.
+        (queued after the correlation filter's update; the next frame's
+        superpixels do not need them, only its scores do), instead of in
+        ``learn`` on this one.  Off by default since the correlation filter
+        alone keeps the second thread busier than the superpixels keep this
+        one; the results are the same either way.
     ncc_radius
         The refinement searches this fraction of the box size around the inlier-based centre.
     ncc_min
@@ -857,6 +856,7 @@ class MILMeasurer:
                 self._svm_task = self._submit(self._train, self.svm_iter, self.t_)
             else:                 # here, while the second thread updates the correlation filter
                 self._train(self.svm_iter, self.t_, background=False)
+
 
 # Load the compiled kernel at import, not inside the first tracked frame (see vidtrack.measure.slic).
 locate_inliers(np.zeros((4, 4), np.int64), np.ones(1), np.array([2.0, 2.0]), np.array([2.0, 2.0]))
