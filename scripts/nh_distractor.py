@@ -28,7 +28,7 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from vidtrack.eval import metrics  # noqa: E402
-from vidtrack.tracker import build_tracker  # noqa: E402
+from vidtrack.recipes import build_tracker  # noqa: E402
 from vidtrack.types import Box, Frame  # noqa: E402
 
 SIZE = (320, 240)

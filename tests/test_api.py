@@ -11,7 +11,7 @@ import vidtrack
 from vidtrack.cli import main
 from vidtrack.errors import SourceError, UsageError
 from vidtrack.sinks.files import format_box
-from vidtrack.tracker import registry
+from vidtrack.recipes import registry
 from vidtrack.types import Box, TrackState
 
 from conftest import SAMPLE_VIDEO, SAMPLE_GT, REPO

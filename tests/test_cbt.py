@@ -20,7 +20,7 @@ from vidtrack.filters.pdaf import pdaf_update
 from vidtrack.learn.baum_welch import (baum_welch, chain_counts, covariance_transition, embed_history,
                                        embedded_covariance, likelihoods, measurement_matrix)
 from vidtrack.measure.detections import score_map_peaks
-from vidtrack.tracker import build_tracker
+from vidtrack.recipes import build_tracker
 from vidtrack.types import Detections
 
 from conftest import synthetic_sequence

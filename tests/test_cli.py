@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from vidtrack.cli import main
-from vidtrack.tracker import registry
+from vidtrack.recipes import registry
 
 from conftest import SAMPLE_GT, SAMPLE_VIDEO
 

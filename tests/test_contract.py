@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from vidtrack.measure.opencv_trackers import NOT_REPRODUCIBLE
-from vidtrack.tracker import build_tracker, registry
+from vidtrack.recipes import build_tracker, registry
 from vidtrack.types import Box, Estimate, TrackState
 
 from conftest import synthetic_sequence

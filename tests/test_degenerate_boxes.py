@@ -16,7 +16,7 @@ import cv2
 import numpy as np
 import pytest
 
-from vidtrack.tracker import registry
+from vidtrack.recipes import registry
 
 #: 96x72 frames: x,y,w,h boxes.
 BOXES = {

@@ -13,7 +13,7 @@ from vidtrack.eval import confidence as conf
 from vidtrack.eval.datasets import load_dataset
 from vidtrack.eval.experiment import run_evaluation
 from vidtrack.eval.synthetic import write_sequence
-from vidtrack.tracker import Recipe, registry
+from vidtrack.recipes import Recipe, registry
 from vidtrack.types import Box, TrackState
 
 

@@ -13,7 +13,7 @@ from vidtrack.cli import main as vidtrack_main
 from vidtrack.eval.datasets import load_dataset, read_boxes
 from vidtrack.eval.experiment import run_evaluation
 from vidtrack.eval.synthetic import write_sequence
-from vidtrack.tracker import Recipe, registry
+from vidtrack.recipes import Recipe, registry
 from vidtrack.types import TrackState
 
 METRICS = {"auc", "precision20", "pascal", "center_error", "fps", "false_lost", "missed_loss", "confidence_auc",

@@ -8,7 +8,7 @@ from vidtrack.filters.mil import MILKalmanFilter, box_from_state, state_from_box
 from vidtrack.measure.image import cut_patch, match_templates
 from vidtrack.measure.mil import (MILMeasurer, inlier_measurement, locate_inliers)
 from vidtrack.measure import superpixels as sp
-from vidtrack.tracker import build_tracker
+from vidtrack.recipes import build_tracker
 from vidtrack.types import Box, Estimate, Frame, Superpixels
 
 

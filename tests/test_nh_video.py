@@ -12,7 +12,7 @@ from vidtrack.filters.score_trackers import (
 )
 from vidtrack.measure import face
 from vidtrack.recipes.normalhedge import RECIPES
-from vidtrack.tracker import build_tracker
+from vidtrack.recipes import build_tracker
 from vidtrack.types import Box, Frame, ScoreMap
 
 from conftest import synthetic_sequence

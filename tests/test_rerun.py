@@ -289,7 +289,7 @@ COMMON_ENTITIES = {"video/frame", "video/boxes/estimate", "video/boxes/predicted
 @pytest.mark.skipif(not (SEQUENCES / "David/img").is_dir(), reason="shared sequences missing")
 @pytest.mark.parametrize("name", sorted(FILTER_ENTITIES))
 def test_paper_filters_record_their_stages(tmp_path, name):
-    from vidtrack.tracker import registry
+    from vidtrack.recipes import registry
 
     if name not in registry():
         pytest.skip(f"{name} is not registered in this build")

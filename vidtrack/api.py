@@ -24,7 +24,8 @@ from typing import Any, Callable, Iterable, Iterator
 import numpy as np
 
 from .errors import UsageError
-from .tracker import Tracker, build_tracker, registry
+from .recipes import build_tracker, registry
+from .tracker import Tracker
 from .types import Box, Frame, TrackState
 
 __all__ = ["VidtrackTracker", "create", "filters", "track", "track_frames", "as_box", "as_image"]

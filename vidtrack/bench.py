@@ -36,7 +36,7 @@ def build_parser():
 def main(argv: Sequence[str]) -> int:
     from .cli import check_box_in_frame, parse_box
     from .sources import open_source
-    from .tracker import build_tracker
+    from .recipes import build_tracker
 
     args = build_parser().parse_args(list(argv))
     if args.max_frames < 2:

@@ -90,7 +90,7 @@ def check_box_in_frame(frame, box) -> None:
 
 
 def default_filter() -> str:
-    from .tracker import registry
+    from .recipes import registry
 
     return DEFAULT_FILTER if DEFAULT_FILTER in registry() else FALLBACK_FILTER
 
@@ -152,7 +152,7 @@ def run_track(argv: Sequence[str]) -> int:
     from .sinks.files import BoxesSink, CsvLogSink
     from .sinks.video import AnnotatedVideoSink
     from .sources import open_source
-    from .tracker import build_tracker
+    from .recipes import build_tracker
 
     args = build_track_parser().parse_args(argv)
     init_box = parse_box(args.init_box)
@@ -210,7 +210,7 @@ def run_track(argv: Sequence[str]) -> int:
 
 
 def run_filters(argv: Sequence[str]) -> int:
-    from .tracker import registry
+    from .recipes import registry
 
     parser = OneLineParser(prog="vidtrack filters", description="List every registered filter.")
     parser.parse_args(argv)

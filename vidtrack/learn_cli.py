@@ -81,7 +81,7 @@ def learn_from_video(path: str, init_box: str, *, order: int, max_frames: int | 
     from .filters.channels import CBTModel
     from .run import run_tracker
     from .sources import open_source
-    from .tracker import build_tracker
+    from .recipes import build_tracker
 
     box = parse_box(init_box)
     tracker = build_tracker("cbt", seed=0, order=order, relearn_every=1, prior_weight=prior_weight)

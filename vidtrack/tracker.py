@@ -1,21 +1,19 @@
-"""The per-frame step loop and the registry of tracker recipes.
+"""The per-frame step loop: ``predict -> measure -> update -> learn``, and what a recipe is.
 
 A *recipe* is a name users type (``--filter kalman-cv``) mapped to a factory
-that builds a :class:`Tracker` from a measurer and a filter.  Recipes live in
-the modules of :mod:`vidtrack.recipes`, one per family, each exposing a plain
-dict ``RECIPES``; :func:`registry` merges them.
+that builds a :class:`Tracker` from a measurer and a filter, and the frozen
+configuration it builds from.  Recipes live in the modules of
+:mod:`vidtrack.recipes`, one per family; :func:`vidtrack.recipes.registry`
+merges them.
 """
 
 from __future__ import annotations
 
-import importlib
-import inspect
-from dataclasses import dataclass, field
-from typing import Any, Callable, Mapping, Protocol, runtime_checkable
+from dataclasses import dataclass
+from typing import Any, Callable, Protocol, runtime_checkable
 
 import numpy as np
 
-from .errors import UsageError
 from .types import Box, Estimate, Frame, Measurement, TrackState
 
 
@@ -110,66 +108,14 @@ def make_state(index: int, prior: Estimate, measurement: Measurement | None, pos
 
 @dataclass(frozen=True)
 class Recipe:
-    """A named tracker: ``build(seed=..., **overrides) -> Tracker``.
+    """A named tracker: ``build(config, seed=...) -> Tracker``.
 
-    ``defaults`` are the keyword arguments ``build`` receives unless
-    overridden; ``description`` is the one line ``vidtrack filters`` shows;
-    ``options`` names every override ``build`` accepts (:func:`build_tracker`
-    rejects any other with a one-line :class:`~vidtrack.errors.UsageError`).
+    ``description`` is the one line ``vidtrack filters`` shows; ``config`` is
+    the family's frozen configuration (:mod:`vidtrack.config`) with this
+    recipe's values, None for a tracker without options.  A preset is a
+    recipe with the same ``build`` and another ``config``.
     """
 
     description: str
     build: Callable[..., Tracker]
-    defaults: Mapping[str, Any] = field(default_factory=dict)
-    options: frozenset[str] = frozenset()
-
-
-def constructor_options(*classes: type, exclude: tuple[str, ...] = ()) -> frozenset[str]:
-    """The constructor keywords of ``classes`` (without ``self``, ``rng``, ``seed``, ``exclude``): recipe options."""
-    skip = {"self", "rng", "seed", *exclude}
-    return frozenset(name for cls in classes for name in inspect.signature(cls).parameters if name not in skip)
-
-
-#: Modules of :mod:`vidtrack.recipes` whose ``RECIPES`` dicts make the registry.
-RECIPE_MODULES = ("classic", "opencv", "svk", "normalhedge", "channels", "mil")
-
-_REGISTRY: dict[str, Recipe] | None = None
-
-
-def registry() -> dict[str, Recipe]:
-    """All registered recipes by name (modules imported on first use)."""
-    global _REGISTRY
-    if _REGISTRY is None:
-        merged: dict[str, Recipe] = {}
-        for module_name in RECIPE_MODULES:
-            try:
-                module = importlib.import_module(f"vidtrack.recipes.{module_name}")
-            except ModuleNotFoundError as exc:  # a family not written yet
-                if exc.name == f"vidtrack.recipes.{module_name}":
-                    continue
-                raise
-            merged.update(module.RECIPES)
-        _REGISTRY = merged
-    return _REGISTRY
-
-
-def build_tracker(name: str, *, seed: int | None = None, **overrides: Any) -> Tracker:
-    """Build the tracker registered as ``name``.
-
-    Raises
-    ------
-    UsageError
-        For an unknown name (the message lists the valid ones) or an
-        override the recipe does not take.
-    """
-    recipes = registry()
-    if name not in recipes:
-        raise UsageError(f"unknown filter {name!r}; valid filters: {', '.join(sorted(recipes))}")
-    recipe = recipes[name]
-    unknown = set(overrides) - recipe.options
-    if unknown:
-        raise UsageError(f"filter {name} does not take option(s) {', '.join(sorted(unknown))}")
-    kwargs = {**recipe.defaults, **overrides}
-    tracker = recipe.build(seed=seed, **kwargs)
-    tracker.name = name
-    return tracker
+    config: Any = None

@@ -10,7 +10,7 @@ from .. import cli, run, sources  # noqa: F401
 from . import experiment  # noqa: F401
 
 try:
-    from ..tracker import registry
+    from ..recipes import registry
 
     registry()
 except Exception:  # a broken recipe module must not take the fork server down; the job will report it

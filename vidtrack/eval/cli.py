@@ -67,7 +67,7 @@ def _names(text: str, option: str) -> list[str]:
 
 def main(argv: list[str]) -> int:
     """Entry point of ``vidtrack eval`` (exit 0, or 2 on bad input; 1 when a tracker failed)."""
-    from ..tracker import registry
+    from ..recipes import registry
     from .datasets import load_dataset
     from .experiment import run_evaluation
     from .attributes import by_attribute

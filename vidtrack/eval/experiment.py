@@ -113,7 +113,7 @@ def track_job(job: Job) -> JobOutput:
     from ..cli import progress_bar
     from ..run import run_tracker
     from ..sources import ImageFolderSource
-    from ..tracker import build_tracker
+    from ..recipes import build_tracker
 
     sequence = job.sequence
     start, stop = job.tracked_rows()

@@ -14,12 +14,13 @@ from __future__ import annotations
 from ..filters.box import MeasuredSizeFilter
 from ..filters.channels import CBTFilter, CBTModel
 from ..measure.detections import DetectionMeasurer
-from ..tracker import Recipe, Tracker, constructor_options
+from ..tracker import Recipe, Tracker
 
-_MEASURER_OPTIONS = constructor_options(DetectionMeasurer)
+_MEASURER_OPTIONS = frozenset(("detector", "margin", "lost_margin", "nms_fraction", "min_score", "max_detections",
+                               "scale_filter", "cf_options"))
 
 
-def build_cbt(seed=None, model=None, **options) -> Tracker:
+def build_cbt(config=None, seed=None, model=None, **options) -> Tracker:
     """CBT tracker; ``model`` is the path of a learned model file (or a :class:`CBTModel`)."""
     measurer_options = {k: options.pop(k) for k in list(options) if k in _MEASURER_OPTIONS}
     if model is not None and not isinstance(model, CBTModel):
@@ -30,6 +31,5 @@ def build_cbt(seed=None, model=None, **options) -> Tracker:
 
 
 RECIPES = {
-    "cbt": Recipe("Channel-Based Tracking (cos² channels, learned motion) on correlation-filter detections", build_cbt,
-                  options=_MEASURER_OPTIONS | constructor_options(CBTFilter)),
+    "cbt": Recipe("Channel-Based Tracking (cos² channels, learned motion) on correlation-filter detections", build_cbt),
 }

@@ -9,13 +9,16 @@ derivative a model carries takes a random step of standard deviation
 
 from __future__ import annotations
 
+from dataclasses import asdict, dataclass
+
 import numpy as np
 
+from ..config import option
 from ..filters.box import CentreFilter, PassThroughFilter
 from ..filters.imm import IMMEstimator, sticky_transition_matrix
 from ..filters.kalman import MOTION_ORDERS, KalmanFilter, motion_model
 from ..measure.meanshift import MeanShiftMeasurer
-from ..tracker import Recipe, Tracker, constructor_options
+from ..tracker import Recipe, Tracker
 from ..types import Box
 
 #: Bhattacharyya coefficient below which a mean-shift measurement is not used and the target is lost.
@@ -39,34 +42,45 @@ def imm_core(box: Box, models=("dr", "cv", "ca"), stay: float = 0.95) -> IMMEsti
     return IMMEstimator(filters, sticky_transition_matrix(len(filters), stay))
 
 
-def build_ms(seed=None, **options) -> Tracker:
-    return Tracker(MeanShiftMeasurer(**options), PassThroughFilter(lost_below=LOST_BELOW))
+@dataclass(frozen=True)
+class MeanShiftConfig:
+    """Options of the mean-shift measurer (:class:`~vidtrack.measure.meanshift.MeanShiftMeasurer`)."""
+
+    bins: int = option(16, "histogram bins per colour channel (grey images use twice as many)")
+    background_weighting: bool = option(True, "background-weighted target histogram (Comaniciu et al., sec. 6.1)")
+    scale_step: float = option(0.0, "relative size change tried each frame (0: the size stays the init size)")
+    scale_gamma: float = option(0.1, "blend of the best size with the previous one")
+    position_sigma: float = option(0.04, "measurement standard deviation at rho = 1, fraction of the box size")
+
+
+def meanshift(config: MeanShiftConfig) -> MeanShiftMeasurer:
+    """The mean-shift measurer configured by ``config``."""
+    return MeanShiftMeasurer(**asdict(config))
+
+
+def build_ms(config: MeanShiftConfig, seed=None) -> Tracker:
+    return Tracker(meanshift(config), PassThroughFilter(lost_below=LOST_BELOW))
 
 
 def build_kalman(model: str):
-    def build(seed=None, **options) -> Tracker:
+    def build(config: MeanShiftConfig, seed=None) -> Tracker:
         order = MOTION_ORDERS[model]
-        return Tracker(MeanShiftMeasurer(**options),
+        return Tracker(meanshift(config),
                        CentreFilter(lambda box: kalman_core(model, box), order=order, lost_below=LOST_BELOW))
     return build
 
 
-def build_imm(seed=None, **options) -> Tracker:
-    return Tracker(MeanShiftMeasurer(**options), CentreFilter(imm_core, order=3, lost_below=LOST_BELOW))
+def build_imm(config: MeanShiftConfig, seed=None) -> Tracker:
+    return Tracker(meanshift(config), CentreFilter(imm_core, order=3, lost_below=LOST_BELOW))
 
-
-#: Every mean-shift recipe takes the measurer's parameters as options.
-MEANSHIFT_OPTIONS = constructor_options(MeanShiftMeasurer)
 
 RECIPES = {
-    "ms": Recipe("mean-shift alone on a colour histogram (Comaniciu et al. 2003)", build_ms,
-                 options=MEANSHIFT_OPTIONS),
+    "ms": Recipe("mean-shift alone on a colour histogram (Comaniciu et al. 2003)", build_ms, MeanShiftConfig()),
     "kalman-dr": Recipe("Kalman filter, drift model, on mean-shift measurements", build_kalman("dr"),
-                        options=MEANSHIFT_OPTIONS),
+                        MeanShiftConfig()),
     "kalman-cv": Recipe("Kalman filter, constant velocity, on mean-shift measurements", build_kalman("cv"),
-                        options=MEANSHIFT_OPTIONS),
+                        MeanShiftConfig()),
     "kalman-ca": Recipe("Kalman filter, constant acceleration, on mean-shift measurements", build_kalman("ca"),
-                        options=MEANSHIFT_OPTIONS),
-    "imm": Recipe("Interacting Multiple Model (DR+CV+CA) on mean-shift measurements", build_imm,
-                  options=MEANSHIFT_OPTIONS),
+                        MeanShiftConfig()),
+    "imm": Recipe("Interacting Multiple Model (DR+CV+CA) on mean-shift measurements", build_imm, MeanShiftConfig()),
 }

@@ -9,18 +9,14 @@ from __future__ import annotations
 
 from ..filters.mil import MILKalmanFilter
 from ..measure.mil import MILMeasurer
-from ..tracker import Recipe, Tracker, constructor_options
+from ..tracker import Recipe, Tracker
 
 
-def build_mil(seed=None, **options) -> Tracker:
-    measurer_keys, filter_keys = constructor_options(MILMeasurer), constructor_options(MILKalmanFilter)
-    measurer = MILMeasurer(rng=seed, **{k: v for k, v in options.items() if k in measurer_keys})
-    filt = MILKalmanFilter(**{k: v for k, v in options.items() if k in filter_keys})
-    return Tracker(measurer, filt)
+def build_mil(config=None, seed=None) -> Tracker:
+    return Tracker(MILMeasurer(rng=seed), MILKalmanFilter())
 
 
 RECIPES = {
     "mil": Recipe("Multiple Instance Filtering: SLIC superpixels + Pegasos SVM + graph-cut inliers "
-                  "in a Kalman filter (Wnuk & Soatto)", build_mil,
-                  options=constructor_options(MILMeasurer, MILKalmanFilter)),
+                  "in a Kalman filter (Wnuk & Soatto)", build_mil),
 }

@@ -3,46 +3,91 @@
 Chaudhuri, Freund & Hsu, "An Online Learning-based Framework for Tracking"
 (UAI 2010) on video: ``nh`` (SMC NormalHedge), ``pf`` (SIR particle filter)
 and ``bayes`` (exact grid Bayes) all read the same
-:class:`~vidtrack.types.ScoreMap`, from the online NCC template detector
-(``detector="ncc"``, default) or OpenCV's cascade face detector
-(``detector="face"``, the seed's motivating example).  ``nh-face``,
+:class:`~vidtrack.types.ScoreMap`, from the correlation-filter detector
+(``detector="cf"``, the default), the online NCC template (``"ncc"``) or
+OpenCV's cascade face detector (``"face"``, the paper's motivating example).  ``nh-face``,
 ``pf-face`` and ``bayes-face`` are the same trackers with the face detector
 as their default, so ``vidtrack eval`` can compare them on face sequences.
 """
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+from typing import Literal
+
 import numpy as np
 
-from ..filters.score_trackers import GridBayesBoxFilter, NormalHedgeBoxFilter, ParticleBoxFilter
+from ..config import option
 from ..filters.box import MeasuredSizeFilter
+from ..filters.score_trackers import GridBayesBoxFilter, NormalHedgeBoxFilter, ParticleBoxFilter
 from ..measure.detectors import make_detector
 from ..tracker import Recipe, Tracker
 
-DETECTOR_OPTION = frozenset({"detector"})
+Detector = Literal["cf", "ncc", "face"]
+DETECTOR_DOC = "the score map: cf (correlation filter), ncc (grey template) or face (OpenCV's Haar cascade)"
 
 
-def _builder(make_filter, default_detector: str = "cf"):
-    def build(seed=None, detector: str = default_detector) -> Tracker:
-        # the box size follows the detector's scale estimate (the cf detector searches scales)
-        return Tracker(make_detector(detector), MeasuredSizeFilter(make_filter(np.random.default_rng(seed))))
-    return build
+@dataclass(frozen=True)
+class NormalHedgeConfig:
+    """``nh``: SMC NormalHedge over box centres (:class:`~vidtrack.filters.score_trackers.NormalHedgeBoxFilter`)."""
 
+    detector: Detector = option("cf", DETECTOR_DOC)
+    n_actions: int = option(100, "N, the number of actions (box centres) NormalHedge weighs")
+    alpha: float = option(0.4, "fraction of the actions re-sampled when their weight vanishes")
+    sigma_star: float = option(0.25, "random-walk step of a re-sampled action, in box sizes")
+
+
+@dataclass(frozen=True)
+class ParticleConfig:
+    """``pf``: SIR particle filter over box centres (:class:`~vidtrack.filters.score_trackers.ParticleBoxFilter`)."""
+
+    detector: Detector = option("cf", DETECTOR_DOC)
+    n_particles: int = option(100, "number of particles")
+    sigma_d: float = option(0.2, "random-walk step of a particle per frame, in box sizes")
+
+
+@dataclass(frozen=True)
+class GridBayesConfig:
+    """``bayes``: exact Bayes filter on a grid of box centres (:class:`~vidtrack.filters.score_trackers.GridBayesBoxFilter`)."""
+
+    detector: Detector = option("cf", DETECTOR_DOC)
+    sigma_d: float = option(0.1, "random-walk step per frame, in box sizes")
+
+
+def _tracker(detector: str, box_filter) -> Tracker:
+    # the box size follows the detector's scale estimate (the cf detector searches scales)
+    return Tracker(make_detector(detector), MeasuredSizeFilter(box_filter))
+
+
+def build_nh(config: NormalHedgeConfig, seed=None) -> Tracker:
+    return _tracker(config.detector, NormalHedgeBoxFilter(n_actions=config.n_actions, alpha=config.alpha,
+                                                          sigma_star=config.sigma_star,
+                                                          rng=np.random.default_rng(seed)))
+
+
+def build_pf(config: ParticleConfig, seed=None) -> Tracker:
+    return _tracker(config.detector, ParticleBoxFilter(n_particles=config.n_particles, sigma_d=config.sigma_d,
+                                                       rng=np.random.default_rng(seed)))
+
+
+def build_bayes(config: GridBayesConfig, seed=None) -> Tracker:
+    return _tracker(config.detector, GridBayesBoxFilter(sigma_d=config.sigma_d, rng=np.random.default_rng(seed)))
+
+
+# nh and bayes on the correlation-filter map: more actions, a shorter regret memory, wider
+# re-sampling; a wider random walk (see vidtrack.filters.score_trackers)
+NH = NormalHedgeConfig(n_actions=300, alpha=0.6, sigma_star=0.35)
+BAYES = GridBayesConfig(sigma_d=0.15)
 
 RECIPES = {
-    # nh and bayes on the correlation-filter map: more actions, a shorter regret memory, wider
-    # re-sampling; a wider random walk (chosen on the tune split; see vidtrack.filters.score_trackers)
-    "nh": Recipe("SMC NormalHedge on a sliding-detector score map (Chaudhuri, Freund & Hsu 2010)",
-                 _builder(lambda rng: NormalHedgeBoxFilter(n_actions=300, alpha=0.6, sigma_star=0.35, rng=rng)),
-                 options=DETECTOR_OPTION),
+    "nh": Recipe("SMC NormalHedge on a sliding-detector score map (Chaudhuri, Freund & Hsu 2010)", build_nh, NH),
     "pf": Recipe("SIR particle filter on a sliding-detector score map (NormalHedge paper's comparator)",
-                 _builder(lambda rng: ParticleBoxFilter(rng=rng)), options=DETECTOR_OPTION),
+                 build_pf, ParticleConfig()),
     "bayes": Recipe("exact grid Bayes filter on a sliding-detector score map (NormalHedge paper's comparator)",
-                    _builder(lambda rng: GridBayesBoxFilter(sigma_d=0.15, rng=rng)), options=DETECTOR_OPTION),
-    "nh-face": Recipe("nh on OpenCV's Haar face-detector score map (the seed's motivating example)",
-                      _builder(lambda rng: NormalHedgeBoxFilter(rng=rng), "face"), options=DETECTOR_OPTION),
-    "pf-face": Recipe("pf on OpenCV's Haar face-detector score map",
-                      _builder(lambda rng: ParticleBoxFilter(rng=rng), "face"), options=DETECTOR_OPTION),
-    "bayes-face": Recipe("bayes on OpenCV's Haar face-detector score map",
-                         _builder(lambda rng: GridBayesBoxFilter(rng=rng), "face"), options=DETECTOR_OPTION),
+                    build_bayes, BAYES),
+    "nh-face": Recipe("nh on OpenCV's Haar face-detector score map (the motivating example of Chaudhuri, "
+                      "Freund & Hsu)", build_nh, NormalHedgeConfig(detector="face")),
+    "pf-face": Recipe("pf on OpenCV's Haar face-detector score map", build_pf, ParticleConfig(detector="face")),
+    "bayes-face": Recipe("bayes on OpenCV's Haar face-detector score map", build_bayes,
+                         GridBayesConfig(detector="face")),
 }

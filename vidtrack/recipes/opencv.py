@@ -6,9 +6,12 @@ vidtrack's (see :mod:`vidtrack.measure.opencv_trackers`).
 
 from __future__ import annotations
 
+from dataclasses import asdict, dataclass
+
+from ..config import option
 from ..filters.box import PassThroughFilter
 from ..measure.opencv_trackers import OpenCVTrackerMeasurer
-from ..tracker import Recipe, Tracker, constructor_options
+from ..tracker import Recipe, Tracker
 
 #: Histogram similarity (to the init box or the running reference, the better) below which an OpenCV box counts as lost.
 LOST_BELOW = 0.5
@@ -23,13 +26,20 @@ DESCRIPTIONS = {
 }
 
 
+@dataclass(frozen=True)
+class OpenCVConfig:
+    """vidtrack's confidence for an OpenCV tracker's box: a colour histogram against a reference."""
+
+    bins: int = option(8, "histogram bins per channel for the confidence")
+    adapt_rate: float = option(0.05, "rate of the running-average reference histogram")
+    adapt_above: float = option(0.5, "confidence a box needs to update the running reference")
+
+
 def _builder(kind: str):
-    def build(seed=None, **options) -> Tracker:
-        return Tracker(OpenCVTrackerMeasurer(kind, seed=seed, **options),
+    def build(config: OpenCVConfig, seed=None) -> Tracker:
+        return Tracker(OpenCVTrackerMeasurer(kind, seed=seed, **asdict(config)),
                        PassThroughFilter(lost_below=LOST_BELOW, follow_when_lost=True))
     return build
 
 
-RECIPES = {f"opencv-{kind}": Recipe(text, _builder(kind),
-                                    options=constructor_options(OpenCVTrackerMeasurer, exclude=("kind",)))
-           for kind, text in DESCRIPTIONS.items()}
+RECIPES = {f"opencv-{kind}": Recipe(text, _builder(kind), OpenCVConfig()) for kind, text in DESCRIPTIONS.items()}

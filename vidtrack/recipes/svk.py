@@ -12,37 +12,54 @@ size like the classic trackers'.
 
 from __future__ import annotations
 
+from dataclasses import asdict, dataclass
+
+from ..config import option
 from ..filters.svk import SupportVectorKalman, SVKCentreFilter
-from ..measure.meanshift import MeanShiftMeasurer
 from ..tracker import Recipe, Tracker
 from ..types import Box
-from .classic import MEANSHIFT_OPTIONS, kalman_core
-
-#: SVR parameters on video.  The paper does not give C for its video
-#: experiments; C = 2^-10 (its linear-motion setting) tracked best on four of
-#: the benchmark sequences (mean IoU 0.37 over their first 300 frames, vs 0.35
-#: with C = 2^-4 and 0.29 with C = 2, whose learned F can be unstable while
-#: the target is lost and the filter coasts).
-SVK_DEFAULTS = {"C": 2.0 ** -10, "epsilon": 0.1, "window": 10, "n_folds": 5, "q_floor": 0.1}
+from .classic import MeanShiftConfig, kalman_core, meanshift
 
 
-def svk_core(box: Box, **params) -> SupportVectorKalman:
+@dataclass(frozen=True)
+class SVRConfig:
+    """The online SVR that learns ``F`` and ``Q`` (:class:`~vidtrack.filters.svk.SupportVectorKalman`).
+
+    The paper gives no ``C`` for its video experiments; its linear-motion value
+    ``2**-10`` is the default (a larger ``C`` learns an ``F`` that can be
+    unstable while the target is lost and the filter coasts).
+    """
+
+    C: float = option(2.0 ** -10, "SVR regularisation weight (the paper: 2^-10 on linear motion, 2 on non-linear)")
+    epsilon: float = option(0.1, "SVR insensitivity, in normalised units (outputs scaled to [-1, 1])")
+    window: int = option(10, "W, the number of state pairs in the sliding training window")
+    n_folds: int = option(5, "folds of the cross-validation that estimates Q")
+    q_floor: float = option(0.1, "Q_ii never goes below this fraction of the matching R entry")
+
+
+@dataclass(frozen=True)
+class SVKConfig:
+    """``svk``: mean-shift measurements, the SVR-learned Kalman filter."""
+
+    meanshift: MeanShiftConfig = option(MeanShiftConfig(), "the mean-shift measurer")
+    svr: SVRConfig = option(SVRConfig(), "the online SVR learning the transition model")
+
+
+def svk_core(box: Box, svr: SVRConfig = SVRConfig()) -> SupportVectorKalman:
     """A 2-axis SVK core for ``box``, bootstrapped from ``kalman-cv``'s model (:func:`kalman_core`).
 
     Its own ``R`` is a fallback: on video every update passes the mean-shift
     measurement's covariance (:class:`~vidtrack.filters.box.CentreFilter`).
     """
     cv = kalman_core("cv", box)
-    return SupportVectorKalman(cv.H, cv.R, cv.F, cv.Q, **{**SVK_DEFAULTS, **params})
+    return SupportVectorKalman(cv.H, cv.R, cv.F, cv.Q, **asdict(svr))
 
 
-def build_svk(seed=None, **options) -> Tracker:
-    params = {k: options.pop(k) for k in list(options) if k in SVK_DEFAULTS}
-    return Tracker(MeanShiftMeasurer(**options),
-                   SVKCentreFilter(lambda box: svk_core(box, **params), order=2))
+def build_svk(config: SVKConfig, seed=None) -> Tracker:
+    return Tracker(meanshift(config.meanshift), SVKCentreFilter(lambda box: svk_core(box, config.svr), order=2))
 
 
 RECIPES = {
     "svk": Recipe("Support Vector Kalman (online SVR-learned F, Q) on mean-shift measurements "
-                  "(Salti & Di Stefano)", build_svk, options=frozenset(SVK_DEFAULTS) | MEANSHIFT_OPTIONS),
+                  "(Salti & Di Stefano)", build_svk, SVKConfig()),
 }

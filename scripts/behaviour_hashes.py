@@ -1,0 +1,111 @@
+"""Fingerprint what vidtrack computes: SHA-256 of result files, to show that a change moves no box.
+
+Runs every registered tracker (``vidtrack filters``) with ``vidtrack eval`` on a few shared
+sequences at one random seed, and ``vidtrack reproduce all``, then prints and writes the SHA-256
+of every result file (``<filter>/<Sequence>.txt``) and of every experiment's JSON table (with its
+timing fields removed, the only part of it that varies from run to run)::
+
+    python scripts/behaviour_hashes.py ../shared/data/sequences --write before.json
+    ...  # change the code
+    python scripts/behaviour_hashes.py ../shared/data/sequences --check before.json
+
+``--check`` exits 1 and names every result whose hash differs; trackers or experiments present on
+one side only are listed, not counted as differences.  The default sequences are two of the *tune*
+split and two of *validate*, short ones so a full run takes a few minutes.
+"""
+
+from __future__ import annotations
+
+import argparse
+import hashlib
+import json
+import subprocess
+import sys
+import tempfile
+from pathlib import Path
+
+DEFAULT_SEQUENCES = "Football1,Man,Crossing,Human8"
+
+#: Keys of an experiment's JSON that hold wall-clock times (dropped before hashing).
+TIMING_KEYS = frozenset({"seconds", "elapsed", "time", "fps", "runtime"})
+
+
+def vidtrack(*args: str) -> subprocess.CompletedProcess:
+    """Run ``python -m vidtrack ARGS`` with this interpreter; stop on failure."""
+    result = subprocess.run([sys.executable, "-m", "vidtrack", *args], capture_output=True, text=True)
+    if result.returncode not in (0,):
+        sys.exit(f"behaviour_hashes: vidtrack {' '.join(args)} exited {result.returncode}: "
+                 f"{result.stderr.strip().splitlines()[-1:] or ''}")
+    return result
+
+
+def registered_filters() -> list[str]:
+    """Every tracker name ``vidtrack filters`` lists (the first word of each line)."""
+    lines = vidtrack("filters").stdout.splitlines()
+    return [line.split()[0] for line in lines if line.strip() and not line.startswith(" ")]
+
+
+def without_timing(value):
+    """``value`` (parsed JSON) with every timing field removed, recursively."""
+    if isinstance(value, dict):
+        return {k: without_timing(v) for k, v in value.items() if k not in TIMING_KEYS}
+    if isinstance(value, list):
+        return [without_timing(v) for v in value]
+    return value
+
+
+def sha256(data: bytes) -> str:
+    return hashlib.sha256(data).hexdigest()
+
+
+def fingerprint(dataset: str, sequences: str, seed: int, jobs: int) -> dict[str, str]:
+    """``{"eval/<filter>/<Sequence>.txt": sha, "reproduce/<name>.json": sha}`` from fresh runs."""
+    hashes: dict[str, str] = {}
+    with tempfile.TemporaryDirectory() as tmp:
+        out = Path(tmp) / "eval"
+        filters = registered_filters()
+        vidtrack("eval", dataset, "--sequences", sequences, "--filter", ",".join(filters), "--seed", str(seed),
+                 "--out", str(out), "--jobs", str(jobs), "--no-plots", "-q")
+        for path in sorted(out.glob("*/*.txt")):
+            hashes[f"eval/{path.parent.name}/{path.name}"] = sha256(path.read_bytes())
+        tables = Path(tmp) / "reproduce"
+        vidtrack("reproduce", "all", "--out", str(tables), "--seed", str(seed), "-q")
+        for path in sorted(tables.glob("*.json")):
+            content = without_timing(json.loads(path.read_text()))
+            hashes[f"reproduce/{path.name}"] = sha256(json.dumps(content, sort_keys=True).encode())
+    return hashes
+
+
+def compare(before: dict[str, str], after: dict[str, str]) -> list[str]:
+    """Lines naming every result that changed, appeared or disappeared."""
+    lines = [f"changed: {key}" for key in sorted(before.keys() & after.keys()) if before[key] != after[key]]
+    lines += [f"only before: {key}" for key in sorted(before.keys() - after.keys())]
+    lines += [f"only after: {key}" for key in sorted(after.keys() - before.keys())]
+    return lines
+
+
+def main() -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("dataset", help="folder of sequence folders (e.g. ../shared/data/sequences)")
+    parser.add_argument("--sequences", default=DEFAULT_SEQUENCES, help=f"default {DEFAULT_SEQUENCES}")
+    parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--jobs", type=int, default=2)
+    target = parser.add_mutually_exclusive_group(required=True)
+    target.add_argument("--write", metavar="FILE.json", help="write the hashes to FILE")
+    target.add_argument("--check", metavar="FILE.json", help="compare with the hashes in FILE; exit 1 on a change")
+    args = parser.parse_args()
+    hashes = fingerprint(args.dataset, args.sequences, args.seed, args.jobs)
+    for key, value in hashes.items():
+        print(f"{value}  {key}")
+    if args.write:
+        Path(args.write).write_text(json.dumps(hashes, indent=1, sort_keys=True) + "\n")
+        return 0
+    report = compare(json.loads(Path(args.check).read_text()), hashes)
+    changed = [line for line in report if line.startswith("changed")]
+    print("\n".join(report) or "every result identical")
+    print(f"{len(hashes)} results, {len(changed)} changed", file=sys.stderr)
+    return 1 if changed else 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
