@@ -19,6 +19,7 @@ from __future__ import annotations
 import argparse
 import hashlib
 import json
+import re
 import subprocess
 import sys
 import tempfile
@@ -27,7 +28,7 @@ from pathlib import Path
 DEFAULT_SEQUENCES = "Football1,Man,Crossing,Human8"
 
 #: Keys of an experiment's JSON that hold wall-clock times (dropped before hashing).
-TIMING_KEYS = frozenset({"seconds", "elapsed", "time", "fps", "runtime"})
+TIMING_KEY = re.compile(r"seconds|elapsed|runtime|fps|(^|_)time(_|$)|(^|_)ms(_|$)")
 
 
 def vidtrack(*args: str) -> subprocess.CompletedProcess:
@@ -48,7 +49,7 @@ def registered_filters() -> list[str]:
 def without_timing(value):
     """``value`` (parsed JSON) with every timing field removed, recursively."""
     if isinstance(value, dict):
-        return {k: without_timing(v) for k, v in value.items() if k not in TIMING_KEYS}
+        return {k: without_timing(v) for k, v in value.items() if not TIMING_KEY.search(k)}
     if isinstance(value, list):
         return [without_timing(v) for v in value]
     return value
@@ -58,10 +59,11 @@ def sha256(data: bytes) -> str:
     return hashlib.sha256(data).hexdigest()
 
 
-def fingerprint(dataset: str, sequences: str, seed: int, jobs: int) -> dict[str, str]:
-    """``{"eval/<filter>/<Sequence>.txt": sha, "reproduce/<name>.json": sha}`` from fresh runs."""
+def fingerprint(dataset: str, sequences: str, seed: int, jobs: int, keep: str | None = None) -> dict[str, str]:
+    """``{"eval/<filter>/<Sequence>.txt": sha, "reproduce/<name>.json": sha}`` from fresh runs (kept in ``keep``)."""
     hashes: dict[str, str] = {}
-    with tempfile.TemporaryDirectory() as tmp:
+    with tempfile.TemporaryDirectory() as scratch:
+        tmp = keep or scratch
         out = Path(tmp) / "eval"
         filters = registered_filters()
         vidtrack("eval", dataset, "--sequences", sequences, "--filter", ",".join(filters), "--seed", str(seed),
@@ -90,11 +92,12 @@ def main() -> int:
     parser.add_argument("--sequences", default=DEFAULT_SEQUENCES, help=f"default {DEFAULT_SEQUENCES}")
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--jobs", type=int, default=2)
+    parser.add_argument("--keep", metavar="DIR", help="keep the eval results and the JSON tables in DIR")
     target = parser.add_mutually_exclusive_group(required=True)
     target.add_argument("--write", metavar="FILE.json", help="write the hashes to FILE")
     target.add_argument("--check", metavar="FILE.json", help="compare with the hashes in FILE; exit 1 on a change")
     args = parser.parse_args()
-    hashes = fingerprint(args.dataset, args.sequences, args.seed, args.jobs)
+    hashes = fingerprint(args.dataset, args.sequences, args.seed, args.jobs, args.keep)
     for key, value in hashes.items():
         print(f"{value}  {key}")
     if args.write:

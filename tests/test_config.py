@@ -26,6 +26,7 @@ class Outer:
     limit: float | None = option(None, "an optional number")
     pair: tuple[float, float] = option((1.0, 2.0), "two numbers")
     name: str = option("x", "a text")
+    factors: tuple[float, ...] = option((1.0,), "any number of numbers")
     inner: Inner = option(Inner(), "a group")
 
 
@@ -34,6 +35,8 @@ def test_strings_convert_to_the_field_types():
                                      "inner.rate": "1e-3", "inner.on": "false"})
     assert config == Outer(size=7, mode="b", limit=0.25, pair=(3.0, 4.0), name="y", inner=Inner(rate=1e-3, on=False))
     assert with_settings(config, {"limit": "none"}).limit is None
+    assert with_settings(config, {"factors": "0.9,1,1.1"}).factors == (0.9, 1.0, 1.1)
+    assert with_settings(config, {"factors": [2]}).factors == (2.0,)
 
 
 def test_python_values_and_whole_groups():
@@ -71,7 +74,8 @@ def test_bad_settings_are_one_line_usage_errors(settings, words):
 
 def test_describe_lists_every_leaf_with_default_type_and_doc():
     rows = {key: (default, kind, doc) for key, default, kind, doc in describe(Outer())}
-    assert list(rows) == ["size", "mode", "limit", "pair", "name", "inner.rate", "inner.on"]
+    assert list(rows) == ["size", "mode", "limit", "pair", "name", "factors", "inner.rate", "inner.on"]
+    assert rows["factors"][:2] == ("1.0", "(float, ...)")
     assert rows["inner.on"] == ("true", "bool", "a switch")
     assert rows["limit"] == ("none", "float or none", "an optional number")
     assert rows["mode"][1] == "a|b"

@@ -69,7 +69,7 @@ def _type_name(tp: Any) -> str:
     if origin in (typing.Union, types.UnionType):
         return " or ".join(_type_name(a) for a in typing.get_args(tp))
     if origin is tuple:
-        return "(" + ", ".join(_type_name(a) for a in typing.get_args(tp)) + ")"
+        return "(" + ", ".join("..." if a is Ellipsis else _type_name(a) for a in typing.get_args(tp)) + ")"
     if tp is type(None):
         return "none"
     return getattr(tp, "__name__", str(tp))
@@ -113,6 +113,10 @@ def _convert(value: Any, tp: Any, key: str) -> Any:
     if origin is tuple:
         parts = value.split(",") if isinstance(value, str) else list(value)
         args = typing.get_args(tp)
+        if len(args) == 2 and args[1] is Ellipsis:   # tuple[X, ...]: any number of X
+            args = (args[0],) * len(parts)
+            if not parts:
+                raise ValueError("expected at least one value")
         if len(parts) != len(args):
             raise ValueError(f"expected {len(args)} comma-separated values")
         return tuple(_convert(p.strip() if isinstance(p, str) else p, a, key) for p, a in zip(parts, args, strict=True))
