@@ -5,9 +5,9 @@ takes (dotted for a group: ``fusion.motion``), given as ``KEY=VALUE`` pairs
 separated by spaces, or as a TOML file (``--config`` takes both, once per
 configuration; none: the tracker's defaults).  Every (configuration, seed,
 sequence) runs in a process pool and the table prints the mean success AUC
-over the sequences at each seed, the mean over the seeds, the worst seed,
-and the sequences whose AUC spreads most over the seeds (a default must not
-depend on a lucky seed)::
+over the sequences at each random seed, its mean over all seeds, the worst
+seed, and the sequences whose AUC spreads most from seed to seed (a default
+must not depend on a lucky seed)::
 
     python scripts/tune_sweep.py ../shared/data/sequences --filter mil \\
         --config '' --config 'superpixels.slic=opencv' \\
