@@ -1,5 +1,6 @@
 """Multiple Instance Filtering: measurement of a known inlier set, the Kalman filter, a synthetic track."""
 
+import pickle
 import subprocess
 import sys
 
@@ -12,6 +13,7 @@ from vidtrack.errors import UsageError
 from vidtrack.filters.mil import MILKalmanFilter, box_from_state, state_from_box
 from vidtrack.measure import superpixels as sp
 from vidtrack.measure.mil import inlier_measurement, locate_inliers
+from vidtrack.measure.threads import SecondThread
 from vidtrack.recipes import build_tracker, recipe_config
 from vidtrack.recipes.mil import build_mil
 from vidtrack.types import Box, Frame, Superpixels
@@ -227,6 +229,20 @@ def test_the_second_thread_gives_the_same_track_as_one_thread():
         tracks[threads] = [(s.box.x, s.box.y, s.box.w, s.box.h, s.status) for s in states]
     assert any(s[-1] == "lost" for s in tracks[False])     # the path covers a loss and a re-detection
     assert tracks[True] == tracks[False]
+
+
+@pytest.mark.parametrize("enabled", [False, True])
+def test_second_thread_runs_tasks_in_order_and_raises_where_the_result_is_taken(enabled):
+    worker = SecondThread(enabled)
+    done = []
+    tasks = [worker.submit(done.append, k) for k in range(5)]
+    failed = worker.submit(lambda: 1 / 0)
+    assert [t.result() for t in tasks] == [None] * 5 and done == list(range(5))
+    with pytest.raises(ZeroDivisionError):
+        failed.result()
+    copy = pickle.loads(pickle.dumps(worker))      # without its thread, which starts again on demand
+    assert copy.enabled is enabled and copy.submit(sum, [1, 2]).result() == 3
+    worker.close()
 
 
 def test_a_predicted_frame_the_correlation_filter_confirms_is_not_lost():
