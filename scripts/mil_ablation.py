@@ -8,8 +8,10 @@ what each extension buys::
 
     python scripts/mil_ablation.py ../shared/data/sequences --seed 0
 
-Each configuration is run through :func:`vidtrack.track` with the options
-below; scores use :mod:`vidtrack.eval.metrics` on the sequences' own frames.
+Each row is a :class:`~vidtrack.recipes.mil.MILConfig`: a preset (``mil``,
+``mil-paper``) or ``mil`` with a few settings changed
+(:func:`vidtrack.config.with_settings`, the keys ``--set`` takes); scores use
+:mod:`vidtrack.eval.metrics` on the sequences' own frames.
 """
 
 from __future__ import annotations
@@ -23,39 +25,46 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-import vidtrack  # noqa: E402
+from vidtrack.config import with_settings  # noqa: E402
 from vidtrack.eval import metrics  # noqa: E402
 from vidtrack.eval.datasets import load_dataset  # noqa: E402
+from vidtrack.recipes import recipe_config  # noqa: E402
+from vidtrack.recipes.mil import MILConfig, build_mil  # noqa: E402
 from vidtrack.sources import ImageFolderSource  # noqa: E402
 
 VALIDATE = "Couple,Crossing,Dog,Freeman1,Human8,Jogging,Suv"
 
-#: name -> options of build_tracker("mil", ...)
+
+MIL = recipe_config("mil")
+
+#: name -> the configuration of the row
 CONFIGS = {
-    "paper (no extension)": dict(refine="none", size_from="inliers", redetect=False, lost_bag=False),
-    "default - cf centre fusion": dict(refine="none"),
-    "default - cf scale": dict(size_from="none"),
-    "default - re-detection": dict(redetect=False),
-    "default - lost bag": dict(lost_bag=False),
-    "default, ncc refinement instead of cf": dict(refine="ncc"),
-    "default - cf constraint (DSST filter)": dict(cf_constrained=False),
-    "default - cf colour merge": dict(cf_colour_merge=0.0),
-    "default - cf sample reuse (re-cut window)": dict(cf_reuse_sample=False),
-    "default - scale filter learning (frozen at frame 1, as before the fix)": dict(cf_options={"scale_update": False}),
-    "default, OpenCV's SLIC instead of the compiled one": dict(slic="opencv"),
-    "default": dict(),
+    "paper (mil-paper)": recipe_config("mil-paper"),
+    "default - cf centre fusion": with_settings(MIL, {"fusion.refine": False}),
+    "default - cf scale": with_settings(MIL, {"fusion.size_from": "none"}),
+    "default - re-detection": with_settings(MIL, {"fusion.redetect": False}),
+    "default - lost bag": with_settings(MIL, {"graphcut.lost_bag": False}),
+    "default - cf constraint (DSST filter)": with_settings(MIL, {"correlation.constrained": False}),
+    "default - cf colour merge": with_settings(MIL, {"correlation.colour_merge": 0.0}),
+    "default - cf sample reuse (re-cut window)": with_settings(MIL, {"correlation.reuse_sample": False}),
+    "default, OpenCV's SLIC instead of the compiled one": with_settings(MIL, {"superpixels.slic": "opencv"}),
+    "default (mil)": MIL,
 }
 
 
-def score_config(sequences, options: dict, seed: int) -> dict[str, tuple[float, float, float]]:
-    """``{sequence: (auc, pascal, fps)}`` of mil with ``options``."""
+def score_config(sequences, config: MILConfig, seed: int) -> dict[str, tuple[float, float, float]]:
+    """``{sequence: (auc, pascal, fps)}`` of the MIL tracker configured by ``config``."""
     out = {}
     for seq in sequences:
         start, stop = seq.eval_range
         source = ImageFolderSource(seq.path, files=list(seq.files[start:stop]))
         init = seq.to_pixels(seq.ground_truth_box(start))
+        tracker = build_mil(config, seed=seed)
         t0 = time.perf_counter()
-        boxes = [seq.from_pixels(s.box).as_array() for s in vidtrack.track(source, init, "mil", seed=seed, **options)]
+        boxes = []
+        for count, frame in enumerate(source):
+            state = tracker.initialize(frame, init) if count == 0 else tracker.step(frame)
+            boxes.append(seq.from_pixels(state.box).as_array())
         seconds = time.perf_counter() - t0
         s = metrics.score(np.array(boxes), seq.ground_truth[start:stop])
         out[seq.name] = (s["auc"], s["pascal"], len(boxes) / seconds)
@@ -69,8 +78,11 @@ def main(argv=None) -> int:
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--configs", help="comma-separated subset of the configuration names")
     args = parser.parse_args(argv)
-    sequences = load_dataset(args.dataset, args.sequences.split(","))
     names = args.configs.split(",") if args.configs else list(CONFIGS)
+    unknown = [name for name in names if name not in CONFIGS]
+    if unknown:
+        parser.error(f"unknown configuration {unknown[0]!r}; valid: {', '.join(CONFIGS)}")
+    sequences = load_dataset(args.dataset, args.sequences.split(","))
     short = [s.name for s in sequences]
     print("| configuration | " + " | ".join(short) + " | mean AUC | PASCAL | fps (decoding included) |")
     print("|---|" + "---|" * (len(short) + 3))

@@ -1,16 +1,22 @@
-"""Sweep a tracker's options on the *tune* split at several seeds: the protocol defaults are chosen by.
+"""Sweep a tracker's settings on the *tune* split at several seeds: the protocol defaults are chosen by.
 
-Each configuration is a JSON object of options for :func:`vidtrack.track`;
-every (configuration, seed, sequence) runs in a process pool and the table
-prints the mean success AUC over the sequences at each seed, the mean over
-the seeds, the worst seed, and the sequences whose AUC spreads most over the
-seeds (a default must not depend on a lucky seed)::
+Each configuration is a set of settings with the keys ``vidtrack --set``
+takes (dotted for a group: ``fusion.motion``), given as ``KEY=VALUE`` pairs
+separated by spaces, or as a TOML file (``--config`` takes both, once per
+configuration; none: the tracker's defaults).  Every (configuration, seed,
+sequence) runs in a process pool and the table prints the mean success AUC
+over the sequences at each random seed, its mean over all seeds, the worst
+seed, and the sequences whose AUC spreads most from seed to seed (a default
+must not depend on a lucky seed)::
 
     python scripts/tune_sweep.py ../shared/data/sequences --filter mil \\
-        --config '{}' --config '{"slic": "opencv"}' --seeds 0,1,2 --jobs 2
+        --config '' --config 'superpixels.slic=opencv' \\
+        --config 'fusion.motion=0.1 fusion.min_quality=0.2' --seeds 0,1,2 --jobs 2
 
-It refuses sequences of the *validate* split: those are reported, never tuned on
-(``../shared/data/sequences/INDEX.md``).  Per-sequence AUCs go to ``--json``.
+A key the tracker does not take, or a value of the wrong type, stops the
+sweep before it starts.  It refuses sequences of the *validate* split: those
+are reported, never tuned on (``../shared/data/sequences/INDEX.md``).
+Per-sequence AUCs go to ``--json``.
 """
 
 from __future__ import annotations
@@ -25,31 +31,49 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-import vidtrack  # noqa: E402
+from vidtrack.config import parse_setting, read_toml  # noqa: E402
+from vidtrack.errors import UsageError  # noqa: E402
 from vidtrack.eval import metrics  # noqa: E402
 from vidtrack.eval.datasets import load_dataset  # noqa: E402
+from vidtrack.recipes import build_tracker, recipe_config  # noqa: E402
 from vidtrack.sources import ImageFolderSource  # noqa: E402
 
 TUNE = "David,Sylvester,FaceOcc1,FaceOcc2,Girl,Tiger1,Tiger2,Man,Dancer2,Football1,Human9,Subway,MotorRolling"
 VALIDATE = {"Couple", "Crossing", "Dog", "Freeman1", "Human8", "Jogging", "Suv"}
 
 
-def run_one(dataset: str, name: str, filter_name: str, options: dict, seed: int) -> float:
-    """Success AUC of ``filter_name`` with ``options`` on sequence ``name`` at ``seed``."""
+def parse_config(text: str) -> dict[str, object]:
+    """The settings of one ``--config``: a TOML file's, or space-separated ``KEY=VALUE`` pairs (empty: none)."""
+    if text.strip().endswith(".toml"):
+        return read_toml(text.strip())
+    return dict(parse_setting(item) for item in text.split())
+
+
+def run_one(dataset: str, name: str, filter_name: str, settings: dict, seed: int) -> float:
+    """Success AUC of ``filter_name`` with ``settings`` on sequence ``name`` at ``seed``."""
     (seq,) = load_dataset(dataset, [name])
     start, stop = seq.eval_range
     source = ImageFolderSource(seq.path, files=list(seq.files[start:stop]))
     init = seq.to_pixels(seq.ground_truth_box(start))
-    boxes = [seq.from_pixels(s.box).as_array()
-             for s in vidtrack.track(source, init, filter_name, seed=seed, **options)]
+    tracker = build_tracker(filter_name, seed=seed, settings=settings)
+    boxes = []
+    for count, frame in enumerate(source):
+        state = tracker.initialize(frame, init) if count == 0 else tracker.step(frame)
+        boxes.append(seq.from_pixels(state.box).as_array())
     return float(metrics.score(np.array(boxes), seq.ground_truth[start:stop])["auc"])
+
+
+def label(settings: dict) -> str:
+    """A configuration as the table shows it: its settings, ``KEY=VALUE`` separated by spaces."""
+    return " ".join(f"{key}={value}" for key, value in settings.items()) or "(defaults)"
 
 
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("dataset")
     parser.add_argument("--filter", default="mil")
-    parser.add_argument("--config", action="append", default=[], help="JSON options (repeat for several)")
+    parser.add_argument("--config", action="append", default=[],
+                        help="one configuration: 'KEY=VALUE KEY=VALUE ...' or FILE.toml (repeat for several)")
     parser.add_argument("--sequences", default=TUNE)
     parser.add_argument("--seeds", default="0,1,2")
     parser.add_argument("--jobs", type=int, default=2)
@@ -59,7 +83,12 @@ def main(argv=None) -> int:
     if VALIDATE & set(names):
         parser.error(f"{sorted(VALIDATE & set(names))} belong to the validate split: never tune on them")
     seeds = [int(s) for s in args.seeds.split(",")]
-    configs = [json.loads(c) for c in (args.config or ["{}"])]
+    try:
+        configs = [parse_config(c) for c in (args.config or [""])]
+        for settings in configs:   # a bad key or value stops the sweep here, not in a worker
+            recipe_config(args.filter, settings)
+    except UsageError as exc:
+        parser.error(str(exc))
     with ProcessPoolExecutor(args.jobs) as pool:
         futures = {(i, s, n): pool.submit(run_one, args.dataset, n, args.filter, c, s)
                    for i, c in enumerate(configs) for s in seeds for n in names}
@@ -71,10 +100,10 @@ def main(argv=None) -> int:
         per_seed = [np.mean([results[i, s, n] for n in names]) for s in seeds]
         spread = {n: max(results[i, s, n] for s in seeds) - min(results[i, s, n] for s in seeds) for n in names}
         widest = sorted(spread, key=spread.get, reverse=True)[:3]
-        print(f"| `{json.dumps(c)}` | " + " | ".join(f"{v:.3f}" for v in per_seed)
+        print(f"| `{label(c)}` | " + " | ".join(f"{v:.3f}" for v in per_seed)
               + f" | **{np.mean(per_seed):.3f}** | {min(per_seed):.3f} | "
               + ", ".join(f"{n} {spread[n]:.2f}" for n in widest) + " |", flush=True)
-        table.append({"config": c, "auc": {n: {s: results[i, s, n] for s in seeds} for n in names}})
+        table.append({"settings": c, "auc": {n: {s: results[i, s, n] for s in seeds} for n in names}})
     if args.json:
         Path(args.json).write_text(json.dumps(table, indent=1))
     return 0

@@ -65,7 +65,7 @@ def test_the_two_implementations_agree_on_a_real_region():
 
 
 def _orientation_cells_reference(grey, cell=4, bins=9, clip=0.2):
-    """The histograms with numpy's bincount (the implementation before the compiled one)."""
+    """The histograms with numpy's bincount (a plain numpy reference for the compiled kernel)."""
     gx = cv2.Sobel(grey, cv2.CV_32F, 1, 0, ksize=1)
     gy = cv2.Sobel(grey, cv2.CV_32F, 0, 1, ksize=1)
     mag, ang = cv2.cartToPolar(gx, gy)

@@ -1,13 +1,19 @@
 """The correlation-filter detector: known shifts, scale change, quality on clutter, re-detection."""
 
+from dataclasses import fields
+
 import cv2
 import numpy as np
 import pytest
 
-from vidtrack.measure.correlation import (CorrelationFilter, CorrelationScoreMapMeasurer, constrained_filter,
-                                          correlation_response, dcf_terms, fuse_peak, gaussian_response,
-                                          peak_to_sidelobe, subpixel_peak)
+from vidtrack.errors import UsageError
+from vidtrack.measure.correlation import CorrelationConfig, CorrelationFilter
+from vidtrack.measure.correlation_score_map import CorrelationDetectorConfig, CorrelationScoreMapMeasurer
+from vidtrack.measure.dcf import (constrained_filter, correlation_response, dcf_terms, gaussian_response,
+                                  peak_to_sidelobe, shift_cells, subpixel_peak)
+from vidtrack.measure.detectors import make_detector
 from vidtrack.measure.features import cell_features, orientation_cells
+from vidtrack.measure.mil_fusion import fuse_peak
 from vidtrack.types import Box, Estimate, Frame
 
 
@@ -59,8 +65,10 @@ def test_dcf_pure_functions_reproduce_the_target_on_the_training_sample():
     assert peak_to_sidelobe(y, (0, 0), 2) > 10
 
 
-#: The plain DSST filter (mil's) and the score-map detector's: constrained (BACF) on a wider window, colour merged.
-FILTERS = {"dsst": {}, "detector": {"padding": 4.0, "window_cells": 40, "constrained": True, "colour_merge": 0.3}}
+#: The plain DSST filter on a narrow window, and the default (mil's): constrained (BACF) on a wider window, colour
+#: merged, learning from the detection's window.
+DSST = CorrelationConfig(padding=2.5, window_cells=32, constrained=False, colour_merge=0.0, reuse_sample=False)
+FILTERS = {"dsst": DSST, "default": CorrelationConfig()}
 
 
 @pytest.mark.parametrize("kind", sorted(FILTERS))
@@ -69,7 +77,7 @@ def test_response_peaks_at_a_known_shift(dx, dy, kind):
     rng = np.random.default_rng(1)
     box = Box.from_center(150, 120, 32, 40)
     img, patch = scene(rng, box.center, box.size)
-    cf = CorrelationFilter(**FILTERS[kind])
+    cf = CorrelationFilter(FILTERS[kind])
     cf.initialize(img, box)
     moved = cv2.warpAffine(img, np.float32([[1, 0, dx], [0, 1, dy]]), (320, 240), borderMode=cv2.BORDER_REFLECT)
     result = cf.detect(moved, box.center, box.size)
@@ -82,7 +90,7 @@ def test_scale_filter_follows_a_1_5x_scale_change(kind):
     rng = np.random.default_rng(2)
     centre, size = np.array([160.0, 120.0]), np.array([32.0, 40.0])
     img, patch = scene(rng, centre, size)
-    cf = CorrelationFilter(**FILTERS[kind])
+    cf = CorrelationFilter(FILTERS[kind])
     box = Box.from_center(*centre, *size)
     cf.initialize(img, box)
     for k in range(1, 31):                    # the target grows 1.5x over 30 frames
@@ -100,7 +108,7 @@ def test_quality_falls_when_the_target_is_replaced_by_clutter(kind):
     rng = np.random.default_rng(3)
     box = Box.from_center(150, 120, 32, 40)
     img, patch = scene(rng, box.center, box.size)
-    cf = CorrelationFilter(**FILTERS[kind])
+    cf = CorrelationFilter(FILTERS[kind])
     cf.initialize(img, box)
     same = cf.detect(scene(rng, box.center, box.size, patch)[0], box.center, box.size)
     clutter = cf.detect(smooth_background(np.random.default_rng(11)), box.center, box.size)
@@ -150,7 +158,8 @@ def test_constrained_filter_follows_a_small_target_the_static_background_outweig
 
     errors = {}
     for constrained in (False, True):
-        cf = CorrelationFilter(padding=4.0, window_cells=40, scale_filter=False, constrained=constrained)
+        cf = CorrelationFilter(CorrelationConfig(scale_filter=False, constrained=constrained, colour_merge=0.0,
+                                                 reuse_sample=False))
         box = Box.from_center(80.0, 120.0, 12, 36)
         cf.initialize(frame(80.0), box)
         for k in range(1, 60):
@@ -167,7 +176,7 @@ def test_search_finds_the_target_far_outside_the_window():
     rng = np.random.default_rng(4)
     box = Box.from_center(80, 70, 30, 36)
     img, patch = scene(rng, box.center, box.size)
-    cf = CorrelationFilter()
+    cf = CorrelationFilter(DSST)
     cf.initialize(img, box)
     far, _ = scene(rng, (250, 170), box.size, patch)
     result = cf.search(far, (160, 120), (320, 240), box.size)
@@ -192,7 +201,6 @@ def test_score_map_measurer_follows_size_and_redetects_while_lost():
 
 
 def test_shift_cells_moves_features_by_whole_and_fractional_cells():
-    from vidtrack.measure.correlation import shift_cells
     f = np.zeros((20, 16, 2), np.float32)
     f[13, 10, :] = 1.0
     g = shift_cells(f, (2, 3))                    # what sat (2, 3) cells from (8, 10) comes to (8, 10)
@@ -206,8 +214,7 @@ def test_shift_cells_moves_features_by_whole_and_fractional_cells():
 
 def _detected_once(constrained, reuse, img0, img1, box0):
     """A filter learned on ``img0``'s ``box0`` that has searched ``img1`` around it."""
-    cf = CorrelationFilter(padding=4.0, window_cells=40, constrained=constrained, colour_merge=0.3,
-                           reuse_sample=reuse, scale_filter=False)
+    cf = CorrelationFilter(CorrelationConfig(constrained=constrained, reuse_sample=reuse, scale_filter=False))
     cf.initialize(img0, box0)
     cf.detect(img1, box0.center, box0.size)
     return cf
@@ -235,3 +242,22 @@ def test_reusing_the_detection_window_matches_a_recut_window(constrained):
         cf.update(img1, Box.from_center(154, 112, *box0.size))
         found[reuse] = cf.detect(img2, (154, 112), box0.size).centre
     assert np.linalg.norm(found[True] - found[False]) < 1.0
+
+
+def test_make_detector_configures_the_score_map_detector():
+    """``make_detector("cf", ...)`` takes the detector's fields (strings converted, an unknown one refused); the
+    detector's filter is mil's but for learning from a re-cut window."""
+    detector = make_detector("cf", scale_filter="false", learn_above=0.3, size_limits=(0.5, 2.0))
+    assert isinstance(detector, CorrelationScoreMapMeasurer)
+    assert detector.config.scale_filter is False and detector.config.learn_above == 0.3
+    assert detector.config.size_limits == (0.5, 2.0)
+    with pytest.raises(UsageError, match="scale_filter"):
+        make_detector("cf", scale_filters=False)
+    mil, own = CorrelationConfig(), CorrelationDetectorConfig()
+    differ = {f.name for f in fields(CorrelationConfig) if getattr(mil, f.name) != getattr(own, f.name)}
+    assert differ == {"reuse_sample"}
+    rng = np.random.default_rng(5)
+    box = Box.from_center(100, 100, 30, 36)
+    img, patch = scene(rng, box.center, box.size)
+    detector.initialize(Frame(0, img), box)
+    assert detector.filter_.scale_ is None     # the scale_filter setting reached the filter

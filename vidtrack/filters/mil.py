@@ -13,14 +13,17 @@ prediction and the Joseph-form update are
 :func:`~vidtrack.filters.kalman.kf_predict` and
 :func:`~vidtrack.filters.kalman.kf_update`.  The measurement side (SLIC
 superpixels, Pegasos SVM, graph-cut inliers ``O(t)``, and the extensions)
-is :class:`vidtrack.measure.mil.MILMeasurer`; this module never looks at
+is :class:`vidtrack.measure.mil_fusion.MILMeasurer`; this module never looks at
 pixels.  No usable measurement means predict only and status ``lost``.
 """
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 
+from ..config import option
 from ..types import LOST, TRACKING, Box, Estimate, Frame, Measurement
 from .kalman import kf_predict, kf_update, motion_model
 
@@ -53,55 +56,53 @@ def box_from_state(x: np.ndarray, *, min_size: float = 4.0) -> Box:
 # ------------------------------------------------------------------ the filter
 
 
+@dataclass(frozen=True)
+class KalmanConfig:
+    """The Kalman filter on the box (:class:`MILKalmanFilter`); noise in fractions of the box scale ``sqrt(w h)``."""
+
+    q_centre: float = option(0.1, "process noise of the centre velocity per frame")
+    q_size: float = option(0.01, "process noise of the size velocity per frame")
+    r_centre: float = option(0.08, "measurement noise of the centre at quality 1 (divided by sqrt(quality))")
+    r_size: float = option(0.05, "measurement noise of the size at quality 1 (divided by sqrt(quality))")
+    initial_sigma: float = option(0.05, "initial standard deviation of the centre and size")
+    lost_below: float = option(0.15, "measurements of lower quality are not used (predict only, lost)")
+    gate: float = option(25.0, "squared Mahalanobis distance of the centre innovation beyond which a measurement "
+                               "is rejected (predict only, lost)")
+    coast_damping: float = option(0.5, "factor on the velocities per frame without a measurement (1: constant "
+                                       "velocity)")
+    size_limits: tuple[float, float] = option((0.25, 4.0), "the size stays within these multiples of the initial "
+                                                           "size")
+    size_damping: float = option(0.9, "factor on the size velocities at every prediction (1: the paper's "
+                                      "constant rate)")
+
+
 class MILKalmanFilter:
     """Kalman filter on ``x = [c, v_c, d, v_d]`` fed by superpixel-inlier measurements.
 
+    The size velocity decays by ``size_damping`` at every prediction (1: the
+    paper's constant-velocity ``F``): a constant size rate learned from a
+    few frames of scale change otherwise keeps shrinking or growing the box
+    after the change has stopped (measured sizes equal to the prediction
+    give no innovation to stop it).  Without a measurement the velocities
+    decay by ``coast_damping``: a long coast on a velocity learned just
+    before a loss carries the prediction away more often than it carries it
+    through an occlusion.
+
     Parameters
     ----------
-    q_centre, q_size
-        Process noise of the centre / size velocities per frame, as a fraction of the box scale.
-    r_centre, r_size
-        Measurement noise standard deviation of the centre / size at quality 1,
-        as a fraction of the box scale (divided by ``sqrt(quality)``).
-    initial_sigma
-        Initial standard deviation of the centre and size, fraction of the box scale.
-    lost_below
-        Measurements below this quality are not used (predict only, ``lost``).
-    gate
-        Squared Mahalanobis distance of the centre innovation beyond which a
-        measurement is rejected as an outlier (predict only, ``lost``).
-    coast_damping
-        Factor on the velocities per frame without a measurement.
-    size_limits
-        The size stays within these multiples of the initial size.
-    size_damping
-        Factor on the size velocities ``v_d`` at every prediction (0: the size
-        is a random walk).  A constant size rate learned from a few frames of
-        scale change otherwise keeps shrinking or growing the box after the
-        change has stopped (measured sizes equal to the prediction give no
-        innovation to stop it).
+    config
+        The filter's :class:`KalmanConfig`.
     """
 
-    def __init__(self, *, q_centre: float = 0.1, q_size: float = 0.01, r_centre: float = 0.08,
-                 r_size: float = 0.05, initial_sigma: float = 0.05, lost_below: float = 0.15,
-                 gate: float = 25.0, coast_damping: float = 0.5,
-                 size_limits: tuple[float, float] = (0.25, 4.0), size_damping: float = 0.9) -> None:
-        self.q_centre = q_centre
-        self.q_size = q_size
-        self.r_centre = r_centre
-        self.r_size = r_size
-        self.initial_sigma = initial_sigma
-        self.lost_below = lost_below
-        self.gate = gate
-        self.coast_damping = coast_damping
-        self.size_limits = size_limits
-        self.size_damping = size_damping
+    def __init__(self, config: KalmanConfig = KalmanConfig()) -> None:
+        self.config = config
 
     def initialize(self, box: Box, frame: Frame | None = None) -> None:
+        c = self.config
         self.scale_ = box.scale
-        self.F_, self.Q_, self.C_ = mil_motion_model(self.scale_, q_centre=self.q_centre, q_size=self.q_size)
+        self.F_, self.Q_, self.C_ = mil_motion_model(self.scale_, q_centre=c.q_centre, q_size=c.q_size)
         self.x_ = state_from_box(box)
-        self.P_ = np.eye(8) * (self.initial_sigma * self.scale_) ** 2
+        self.P_ = np.eye(8) * (c.initial_sigma * self.scale_) ** 2
         self.init_size_ = box.size.copy()
         self.frame_size_ = None if frame is None else (frame.width, frame.height)
         self.estimate_ = Estimate(box, self.C_ @ self.P_ @ self.C_.T, 1.0, TRACKING)
@@ -115,14 +116,14 @@ class MILKalmanFilter:
 
     def predict(self) -> Estimate:
         self.x_, self.P_ = kf_predict(self.x_, self.P_, self.F_, self.Q_)  # x = F x, P = F P F' + Q
-        self.x_[[5, 7]] *= self.size_damping
+        self.x_[[5, 7]] *= self.config.size_damping
         self._clamp()
         self.estimate_ = Estimate(self._box(), self.C_ @ self.P_ @ self.C_.T,
                                   self.estimate_.confidence, self.estimate_.status)
         return self.estimate_
 
     def _clamp(self) -> None:
-        lo, hi = self.size_limits
+        lo, hi = self.config.size_limits
         for k, axis in ((4, 0), (6, 1)):
             self.x_[k] = np.clip(self.x_[k], lo * self.init_size_[axis], hi * self.init_size_[axis])
         if self.frame_size_ is not None:
@@ -130,12 +131,13 @@ class MILKalmanFilter:
             self.x_[2] = np.clip(self.x_[2], 0.0, self.frame_size_[1])
 
     def _coast(self) -> None:
-        self.x_[[1, 3, 5, 7]] *= self.coast_damping
+        self.x_[[1, 3, 5, 7]] *= self.config.coast_damping
 
     def measurement_noise(self, quality: float) -> np.ndarray:
         """``R`` at measurement ``quality``: ``diag(r_c, r_c, r_d, r_d)^2 s^2 / quality``."""
         s = self.scale_
-        r = np.array([self.r_centre, self.r_centre, self.r_size, self.r_size]) * s
+        c = self.config
+        r = np.array([c.r_centre, c.r_centre, c.r_size, c.r_size]) * s
         return np.diag(r ** 2) / max(quality, 0.05)
 
     def update(self, measurement: Measurement | None) -> Estimate:
@@ -147,14 +149,14 @@ class MILKalmanFilter:
             if np.any(measurement.inliers):
                 scalars["svm_margin"] = float(np.mean(measurement.scores[measurement.inliers]))
         status = LOST
-        if box is not None and quality >= self.lost_below:
+        if box is not None and quality >= self.config.lost_below:
             z = np.array([*box.center, box.w, box.h])
             R = self.measurement_noise(quality)
             y = z[:2] - self.x_[[0, 2]]
             S = (self.C_ @ self.P_ @ self.C_.T + R)[:2, :2]
             d2 = float(y @ np.linalg.solve(S, y))
             scalars["innovation"] = float(np.linalg.norm(y))
-            if d2 <= self.gate:
+            if d2 <= self.config.gate:
                 result = kf_update(self.x_, self.P_, z, self.C_, R)  # Joseph form
                 self.x_, self.P_ = result.x, result.P
                 self._clamp()
@@ -162,7 +164,7 @@ class MILKalmanFilter:
         scalars["measured"] = float(status == TRACKING)
         if status == LOST:
             self._coast()
-            quality = min(quality, self.lost_below * 0.99)
+            quality = min(quality, self.config.lost_below * 0.99)
             if getattr(measurement, "present", False):   # predicted only, but the target is there: not lost
                 status = TRACKING
         cov = self.C_ @ self.P_ @ self.C_.T

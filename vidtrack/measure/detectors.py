@@ -1,24 +1,32 @@
 """The score-map detectors by name (``--detector NAME``): a plain-dict registry.
 
 ``cf`` (default) is the correlation-filter detector on HOG and colour
-(:mod:`vidtrack.measure.correlation`), ``ncc`` the grey NCC template
+(:mod:`vidtrack.measure.correlation_score_map`), ``ncc`` the grey NCC template
 (:mod:`vidtrack.measure.score_map`), ``face`` OpenCV's Haar face cascade
 (:mod:`vidtrack.measure.face`, the NormalHedge paper's motivating example).
 """
 
 from __future__ import annotations
 
+from ..config import with_settings
 from ..errors import UsageError
 
 DETECTORS = ("cf", "ncc", "face")
 
 
 def make_detector(name: str = "cf", **options):
-    """The score-map measurer called ``name``, built with ``options``."""
-    if name == "cf":
-        from .correlation import CorrelationScoreMapMeasurer
+    """The score-map measurer called ``name``, built with ``options``.
 
-        return CorrelationScoreMapMeasurer(**options)
+    For ``cf`` the options are fields of
+    :class:`~vidtrack.measure.correlation_score_map.CorrelationDetectorConfig`
+    (values or strings, converted to the field's type; an unknown one raises
+    :class:`~vidtrack.errors.UsageError` naming the valid ones); for the
+    others, keyword arguments of the measurer.
+    """
+    if name == "cf":
+        from .correlation_score_map import CorrelationDetectorConfig, CorrelationScoreMapMeasurer
+
+        return CorrelationScoreMapMeasurer(with_settings(CorrelationDetectorConfig(), options))
     if name == "ncc":
         from .score_map import NCCScoreMapMeasurer
 

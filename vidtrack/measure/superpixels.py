@@ -12,10 +12,8 @@ statistics and adjacency are computed for all superpixels in one compiled
 pass over the label image (Numba, without the GIL).
 
 SLIC: the compiled implementation of :mod:`vidtrack.measure.slic` by
-default, about 3x faster than OpenCV's ``ximgproc`` one on a search region
-(which is kept as ``implementation="opencv"``); OpenCV's had measured about
-4x faster than scikit-image's ``slic`` (5.4 ms vs 21.6 ms on a 120x140
-region, 5 iterations).
+default, several times faster than OpenCV's ``ximgproc`` one on a search
+region (which is kept as ``implementation="opencv"``).
 """
 
 from __future__ import annotations
