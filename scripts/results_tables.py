@@ -23,8 +23,8 @@ A run folder written by ``--run`` holds ``results_run.json`` (the command,
 version, commit, dates and load average).  For other folders the command is
 rebuilt from the run records beside the result files and the version is
 marked as not recorded.  ``--run`` re-uses a folder's results only when they
-were made at the same clean commit (an interrupted run resumes); otherwise it
-passes ``--force``.
+were made by the same committed code (the git trees of ``vidtrack/`` and
+``pyproject.toml``), so an interrupted run resumes; otherwise it passes ``--force``.
 """
 
 from __future__ import annotations
@@ -151,7 +151,8 @@ def provenance() -> dict:
         raise SystemExit(f"results_tables: python -m vidtrack runs {location}, not this checkout ({REPO})")
     commit = _git("rev-parse", "--short=12", "HEAD")
     dirty = bool(_git("status", "--porcelain", "--", "vidtrack", "pyproject.toml"))  # the code, not docs/
-    return {"version": version, "commit": commit or None, "dirty": dirty, "env": env}
+    code = " ".join(_git("rev-parse", f"HEAD:{p}") for p in ("vidtrack", "pyproject.toml")).strip()
+    return {"version": version, "commit": commit or None, "dirty": dirty, "code": code or None, "env": env}
 
 
 def _now() -> str:
@@ -171,10 +172,12 @@ def run_evaluations(args, splits: dict[str, tuple[str, ...]]) -> list[Path]:
                        "--filter", args.filter, "--seed", str(seed), "--out", str(out), "--no-plots", "-q"]
             command += [a for s in args.set for a in ("--set", s)] + (["--config", args.config] if args.config else [])
             previous = json.loads((out / META).read_text()) if (out / META).is_file() else {}
-            same = previous.get("commit") == prov["commit"] and not prov["dirty"] and not previous.get("dirty")
+            # resume only on the same code (git trees of vidtrack/ and pyproject.toml), committed and unchanged
+            same = (prov["code"] is not None and previous.get("code") == prov["code"]
+                    and not prov["dirty"] and not previous.get("dirty"))
             argv = command[1:] + ([] if same else ["--force"])
             meta = {"command": command, "seed": seed, "version": prov["version"], "commit": prov["commit"],
-                    "dirty": prov["dirty"], "cpus": os.cpu_count(), "load_start": round(os.getloadavg()[0], 2),
+                    "dirty": prov["dirty"], "code": prov["code"], "cpus": os.cpu_count(), "load_start": round(os.getloadavg()[0], 2),
                     "started": _now()}
             out.mkdir(parents=True, exist_ok=True)
             (out / META).write_text(json.dumps(meta | {"status": "running"}, indent=2) + "\n")
