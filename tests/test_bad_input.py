@@ -8,7 +8,6 @@ empty: bad input never leaves an empty or half-written file behind.
 from __future__ import annotations
 
 import os
-import sys
 import wave
 from pathlib import Path
 
