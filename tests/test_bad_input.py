@@ -48,7 +48,7 @@ CASES: dict[str, tuple[list[str], str]] = {
     "box 1e9 wide": (["{video}", "--init-box", "0,0,1e9,45"], "outside"),
     "missing --init-box": (["{video}"], "init-box"),
     "--init-box without value": (["{video}", "--init-box"], "expected one argument"),
-    # -- degenerate boxes for OpenCV's trackers (were assertions, a segfault, a hang)
+    # -- degenerate boxes for OpenCV's trackers (inside OpenCV: an assertion, a segfault or a hang)
     "opencv-csrt on 1x1": (["{video}", "--init-box", "56,20,1,1", "--filter", "opencv-csrt"], "at least 8x8"),
     "opencv-mosse on 1x1": (["{video}", "--init-box", "56,20,1,1", "--filter", "opencv-mosse"], "at least 8x8"),
     "opencv-mil on 1x1": (["{video}", "--init-box", "56,20,1,1", "--filter", "opencv-mil"], "at least 8x8"),

@@ -130,7 +130,7 @@ def test_video_failing_part_way_keeps_tracked_frames(tmp_path, sample_init_box):
 
 
 def test_face_detector_tracks_a_face(tmp_path):
-    """The seed's motivating example: NormalHedge over OpenCV's Haar face cascade (shipped in the wheel)."""
+    """NormalHedge over OpenCV's Haar face cascade (shipped in the wheel) follows a real face."""
     from conftest import SEQUENCES
 
     sequence = SEQUENCES / "FaceOcc1"

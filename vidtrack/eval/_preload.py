@@ -6,8 +6,9 @@ job still starts with pristine library state.
 
 import tqdm  # noqa: F401  (the command line's progress bar, which jobs may carry)
 
-from .. import run, sources  # noqa: F401
-from . import jobs  # noqa: F401
+from ..run import run_tracker  # noqa: F401
+from ..sources import open_source  # noqa: F401
+from .jobs import run_job  # noqa: F401
 
 try:
     from ..recipes import registry
