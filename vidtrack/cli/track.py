@@ -14,8 +14,8 @@ from typing import Sequence
 
 from ..errors import UsageError, VidtrackError
 from ..version import __version__
-from .common import (EXIT_INTERRUPTED, EXIT_OK, EXIT_USAGE, SUBCOMMANDS, OneLineParser,
-                     add_filter_argument, add_settings_arguments, check_box_in_frame, default_filter, error_line,
+from .common import (EXIT_INTERRUPTED, EXIT_OK, EXIT_USAGE, SUBCOMMANDS, OneLineParser, add_filter_argument,
+                     add_settings_arguments, check_box_in_frame, check_settings, default_filter, error_line,
                      parse_init_box, progress_bar, say, tracker_settings)
 
 
@@ -53,7 +53,6 @@ def main(argv: Sequence[str]) -> int:
     from ..sinks.files import BoxesSink, CsvLogSink
     from ..sinks.video import AnnotatedVideoSink
     from ..sources import open_source
-    from .common import check_settings
 
     args = build_parser().parse_args(argv)
     init_box = parse_init_box(args.init_box)
