@@ -11,7 +11,7 @@ VOT_BIN  := $(VOT_VENV)/bin
 CONSTRAINTS     ?= constraints.txt
 VOT_CONSTRAINTS ?= constraints-vot.txt
 
-.PHONY: demo test install install-dev vot-env constraints sample clean
+.PHONY: demo test lint install install-dev vot-env constraints sample clean
 
 $(BIN)/python:
 	$(PYTHON) -m venv $(VENV)
@@ -49,7 +49,13 @@ demo: install
 		--filter $${FILTER:-mil} -o $(OUT)/demo.mp4 --boxes $(OUT)/demo_boxes.txt --log $(OUT)/demo_log.csv
 	@echo "demo: annotated video $(OUT)/demo.mp4, boxes $(OUT)/demo_boxes.txt, per-frame log $(OUT)/demo_log.csv"
 
-test: install-dev vot-env
+# The lint gate, run before the tests: ruff's rules and import-linter's layer contracts (both in
+# pyproject.toml), so a lint error or an upward import fails `make test` and CI.
+lint: install-dev
+	$(BIN)/ruff check vidtrack tests scripts
+	$(BIN)/lint-imports
+
+test: install-dev vot-env lint
 	VIDTRACK_VOT=$(abspath $(VOT_BIN))/vot $(BIN)/python -m pytest $(PYTEST_ARGS)
 
 sample: install

@@ -127,7 +127,9 @@ def test_filters_lists_every_registered_name_with_its_description():
 
 @pytest.mark.parametrize("call, message", [
     (lambda: vidtrack.create("no-such"), "unknown filter 'no-such'; valid filters:"),
-    (lambda: vidtrack.create("ms", detector="face"), "filter ms does not take option(s) detector"),
+    (lambda: vidtrack.create("ms", detector="face"), "filter ms: unknown option 'detector'; valid options: bins,"),
+    (lambda: vidtrack.create("ms", settings={"bins": "many"}), "filter ms: bad value 'many' for option bins (int)"),
+    (lambda: vidtrack.create("ms").init(np.zeros((10, 10, 3), np.uint8), "1,2,three,4"), "box must be four numbers"),
     (lambda: vidtrack.create("ms").update(np.zeros((10, 10, 3), np.uint8)), "call init(image, box) before"),
     (lambda: vidtrack.create("ms").init(np.zeros((10, 10, 3), np.uint8), (1, 2, 3)), "box must be four numbers"),
     (lambda: vidtrack.create("ms").init(np.zeros((10, 10, 3), np.uint8), (1, 2, 0, 3)), "positive width"),

@@ -8,7 +8,6 @@ empty: bad input never leaves an empty or half-written file behind.
 from __future__ import annotations
 
 import os
-import sys
 import wave
 from pathlib import Path
 
@@ -49,7 +48,7 @@ CASES: dict[str, tuple[list[str], str]] = {
     "box 1e9 wide": (["{video}", "--init-box", "0,0,1e9,45"], "outside"),
     "missing --init-box": (["{video}"], "init-box"),
     "--init-box without value": (["{video}", "--init-box"], "expected one argument"),
-    # -- degenerate boxes for OpenCV's trackers (were assertions, a segfault, a hang)
+    # -- degenerate boxes for OpenCV's trackers (inside OpenCV: an assertion, a segfault or a hang)
     "opencv-csrt on 1x1": (["{video}", "--init-box", "56,20,1,1", "--filter", "opencv-csrt"], "at least 8x8"),
     "opencv-mosse on 1x1": (["{video}", "--init-box", "56,20,1,1", "--filter", "opencv-mosse"], "at least 8x8"),
     "opencv-mil on 1x1": (["{video}", "--init-box", "56,20,1,1", "--filter", "opencv-mil"], "at least 8x8"),
@@ -62,13 +61,29 @@ CASES: dict[str, tuple[list[str], str]] = {
     # -- options
     "unknown filter": (["{video}", "--init-box", "1,1,5,5", "--filter", "nope"], "kalman-cv"),
     "option the filter does not take": (["{video}", "--init-box", "1,1,5,5", "--filter", "ms",
-                                         "--detector", "face"], "does not take"),
+                                         "--detector", "face"], "filter ms: unknown option 'detector'"),
     "missing model file": (["{video}", "--init-box", "1,1,20,20", "--filter", "cbt", "--model", "nope.npz"],
                            "no such file"),
     "unknown option": (["{video}", "--init-box", "1,1,5,5", "--bogus"], "unrecognized"),
     "--max-frames 0": (["{video}", "--init-box", "1,1,5,5", "--max-frames", "0"], "at least 1"),
     "--flush-every 0": (["{video}", "--init-box", "1,1,5,5", "--flush-every", "0"], "at least 1"),
     "--seed not a number": (["{video}", "--init-box", "1,1,5,5", "--seed", "x"], "invalid int"),
+    # -- tracker options: --set and --config
+    "--set of an unknown option": (["{video}", "--init-box", "1,1,5,5", "--filter", "svk", "--set", "svr.D=1"],
+                                   "filter svk: unknown option 'svr.D'; valid options: meanshift.bins,"),
+    "--set of a group": (["{video}", "--init-box", "1,1,5,5", "--filter", "svk", "--set", "svr=1"],
+                         "is a group"),
+    "--set of a bad value": (["{video}", "--init-box", "1,1,5,5", "--filter", "svk", "--set", "svr.C=big"],
+                             "bad value 'big' for option svr.C (float)"),
+    "--set without =": (["{video}", "--init-box", "1,1,5,5", "--set", "bins"], "--set takes KEY=VALUE"),
+    "--set of a tracker without it": (["{video}", "--init-box", "1,1,5,5", "--filter", "opencv-kcf",
+                                       "--set", "scale_step=0.1"], "filter opencv-kcf: unknown option"),
+    "missing --config file": (["{video}", "--init-box", "1,1,5,5", "--config", "nope.toml"],
+                              "--config: no such file: nope.toml"),
+    "--config not TOML": (["{video}", "--init-box", "1,1,5,5", "--config", "{bad_toml}"], "is not valid TOML"),
+    "--config of a folder": (["{video}", "--init-box", "1,1,5,5", "--config", "{empty}"], "is a folder"),
+    "--config with an unknown option": (["{video}", "--init-box", "1,1,5,5", "--filter", "kalman-cv",
+                                         "--config", "{unknown_toml}"], "unknown option 'fusion.redetect'"),
     # -- outputs
     "unwritable boxes": (["{video}", "--init-box", "1,1,5,5", "--boxes", "/proc/vidtrack/b.txt"], "cannot write"),
     "unwritable video": (["{video}", "--init-box", "1,1,5,5", "-o", "/proc/vidtrack/o.mp4"], "cannot write"),
@@ -90,6 +105,10 @@ CASES: dict[str, tuple[list[str], str]] = {
     "eval: images of two sizes": (["eval", "{gt_mixed}", "--filter", "kalman-cv"], "0001.png is 80x60"),
     "eval: --jobs 0": (["eval", "{dataset}", "--filter", "kalman-cv", "--jobs", "0"], "at least 1"),
     "eval: --max-frames 0": (["eval", "{dataset}", "--filter", "kalman-cv", "--max-frames", "0"], "at least 1"),
+    "eval: an option one filter lacks": (["eval", "{dataset}", "--filter", "kalman-cv,opencv-kcf", "--out", "{out}/e",
+                                          "--set", "scale_step=0.1"], "filter opencv-kcf: unknown option"),
+    "eval: missing --config file": (["eval", "{dataset}", "--filter", "kalman-cv", "--config", "nope.toml"],
+                                    "no such file"),
     # -- vidtrack learn
     "learn: unknown kind": (["learn", "foo", "{dataset}", "--out", "{out}/m.npz"], "invalid choice"),
     "learn: missing source": (["learn", "cbt", "nope", "--out", "{out}/m.npz"], "no such"),
@@ -112,12 +131,20 @@ CASES: dict[str, tuple[list[str], str]] = {
     "bench: opencv-mosse on 1x1": (["bench", "{video}", "--init-box", "5,5,1,1", "--filter", "opencv-mosse"],
                                    "at least 8x8"),
     "bench: text file as video": (["bench", "{text}", "--init-box", "1,1,5,5"], "not a video file"),
+    "bench: --set of a bad value": (["bench", "{video}", "--init-box", "1,1,5,5", "--filter", "svk",
+                                     "--set", "svr.window=2.5"], "expected an integer"),
+    # -- vidtrack filters, vidtrack trax (an error before any protocol message)
+    "filters: unknown name": (["filters", "nope"], "unknown filter 'nope'"),
+    "trax: unknown filter": (["trax", "--filter", "nope"], "unknown filter 'nope'"),
+    "trax: --set of an unknown option": (["trax", "--filter", "kalman-cv", "--set", "nope=1"],
+                                         "filter kalman-cv: unknown option 'nope'"),
+    "trax: missing --config file": (["trax", "--filter", "kalman-cv", "--config", "nope.toml"], "no such file"),
 }
 
 #: vidtrack (track) cases get these outputs too, so a half file would show up in {out}.
 #: No --quiet: the progress bar must not add to the one line either.
 TRACK_OUTPUTS = ["--boxes", "{out}/b.txt", "--log", "{out}/l.csv"]
-SUBCOMMANDS = ("eval", "learn", "reproduce", "bench")
+SUBCOMMANDS = ("eval", "learn", "reproduce", "bench", "filters", "trax")
 
 
 def _frames(folder: Path, sizes: list[tuple[int, int]]) -> Path:
@@ -184,6 +211,10 @@ def corpus_files(tmp: Path) -> dict[str, str]:
     mixed = _sequence(tmp / "bad6", "Mixed", ["10,10,20,20"] * 3)
     _frames(tmp / "bad6" / "Mixed" / "img", [(64, 48), (80, 60)])
     files["gt_mixed"] = str(mixed)
+    (tmp / "bad.toml").write_text("[svr\nC = 1\n")
+    files["bad_toml"] = str(tmp / "bad.toml")
+    (tmp / "unknown.toml").write_text("[fusion]\nredetect = false\n")
+    files["unknown_toml"] = str(tmp / "unknown.toml")
     return files
 
 

@@ -130,7 +130,7 @@ def test_video_failing_part_way_keeps_tracked_frames(tmp_path, sample_init_box):
 
 
 def test_face_detector_tracks_a_face(tmp_path):
-    """The seed's motivating example: NormalHedge over OpenCV's Haar face cascade (shipped in the wheel)."""
+    """NormalHedge over OpenCV's Haar face cascade (shipped in the wheel) follows a real face."""
     from conftest import SEQUENCES
 
     sequence = SEQUENCES / "FaceOcc1"
@@ -194,4 +194,4 @@ def test_ctrl_c_keeps_every_tracked_frame(tmp_path, sample_init_box):
 def test_a_cli_option_the_filter_does_not_take_is_one_line_exit_2(name, flag, value, sample_init_box, capsys):
     assert main([str(SAMPLE_VIDEO), "--init-box", sample_init_box, "--filter", name, flag, value, "-q"]) == 2
     err = capsys.readouterr().err.strip().splitlines()
-    assert len(err) == 1 and f"filter {name} does not take option" in err[0]
+    assert len(err) == 1 and f"filter {name}: unknown option '{flag[2:]}'; valid options: " in err[0]

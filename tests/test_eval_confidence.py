@@ -11,7 +11,7 @@ import pytest
 
 from vidtrack.eval import confidence as conf
 from vidtrack.eval.datasets import load_dataset
-from vidtrack.eval.experiment import run_evaluation
+from vidtrack.eval.evaluation import run_evaluation
 from vidtrack.eval.synthetic import write_sequence
 from vidtrack.recipes import Recipe, registry
 from vidtrack.types import Box, TrackState
@@ -84,7 +84,7 @@ class ScriptedTracker:
 
 def test_evaluation_scores_a_scripted_confidence(tmp_path, monkeypatch):
     truth = write_sequence(tmp_path / "data" / "Otb", layout="otb", frames=20, size=(120, 72))
-    monkeypatch.setitem(registry(), "test-scripted", Recipe("test", lambda seed=None: ScriptedTracker(truth)))
+    monkeypatch.setitem(registry(), "test-scripted", Recipe("test", lambda config, seed=None: ScriptedTracker(truth)))
     sequences = load_dataset(tmp_path / "data")
     out = tmp_path / "out"
     evaluation = run_evaluation(sequences, ["test-scripted"], out, isolate=False)

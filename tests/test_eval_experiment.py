@@ -11,7 +11,7 @@ import pytest
 
 from vidtrack.cli import main as vidtrack_main
 from vidtrack.eval.datasets import load_dataset, read_boxes
-from vidtrack.eval.experiment import run_evaluation
+from vidtrack.eval.evaluation import run_evaluation
 from vidtrack.eval.synthetic import write_sequence
 from vidtrack.recipes import Recipe, registry
 from vidtrack.types import TrackState
@@ -42,9 +42,9 @@ class StaticTracker:
 @pytest.fixture
 def fake_trackers(monkeypatch):
     StaticTracker.received = []
-    monkeypatch.setitem(registry(), "test-static", Recipe("test", lambda seed=None: StaticTracker()))
+    monkeypatch.setitem(registry(), "test-static", Recipe("test", lambda config, seed=None: StaticTracker()))
     monkeypatch.setitem(registry(), "test-crash",
-                        Recipe("test", lambda seed=None: StaticTracker(crash_wider_than=100)))
+                        Recipe("test", lambda config, seed=None: StaticTracker(crash_wider_than=100)))
 
 
 @pytest.fixture
@@ -167,7 +167,7 @@ def test_processes_and_dask_give_identical_files(dataset, tmp_path):
 
 
 def test_isolated_job_matches_forked_and_in_process(dataset):
-    from vidtrack.eval.experiment import Job, run_job
+    from vidtrack.eval.jobs import Job, run_job
     from vidtrack.eval.worker import run_forked, run_isolated
 
     data, _ = dataset

@@ -1,10 +1,12 @@
-"""Property-based tests of the box parsers: ``--init-box`` and ground-truth / result files.
+"""Property-based tests of the one box parser and its users: ``--init-box`` and ground-truth / result files.
 
-Whatever the text, :func:`vidtrack.cli.parse_box` returns a valid box or
+Whatever the text, :meth:`vidtrack.types.Box.parse` returns a box or raises
+ValueError, :func:`vidtrack.cli.common.parse_init_box` returns a valid box or
 raises :class:`UsageError`, and :func:`vidtrack.eval.datasets.parse_boxes`
 returns the rows or raises :class:`DatasetError`: never another exception.
 Rows written with any of the separators and line ends found in the wild
-(commas, tabs, spaces, CRLF, a byte-order mark, blank lines) read back exactly.
+(commas, tabs, spaces, CRLF, a byte-order mark, blank lines) read back exactly,
+and the command line, the API and the datasets read the same text alike.
 """
 
 from __future__ import annotations
@@ -14,9 +16,11 @@ import math
 import numpy as np
 from hypothesis import given, settings, strategies as st
 
-from vidtrack.cli import join_negative_values, parse_box
+from vidtrack.api import as_box
+from vidtrack.cli.common import join_negative_values, parse_init_box as parse_box
 from vidtrack.errors import DatasetError, UsageError
 from vidtrack.eval.datasets import parse_boxes, read_boxes
+from vidtrack.types import Box
 
 finite = st.floats(min_value=-1e6, max_value=1e6, allow_nan=False, allow_infinity=False)
 positive = st.floats(min_value=1e-3, max_value=1e6, allow_nan=False, allow_infinity=False)
@@ -55,6 +59,36 @@ def test_init_box_needs_four_finite_numbers_with_positive_size(values):
         assert good
     except UsageError:
         assert not good
+
+
+@SETTINGS
+@given(st.text(max_size=40))
+def test_box_parse_any_text_is_a_box_or_a_value_error(text):
+    try:
+        box = Box.parse(text)
+    except ValueError as exc:
+        assert "\n" not in str(exc)
+    else:
+        assert isinstance(box, Box)
+
+
+@SETTINGS
+@given(values=st.lists(st.one_of(finite, st.just(float("nan"))), min_size=4, max_size=4), sep=separators)
+def test_cli_api_and_datasets_read_one_row_alike(values, sep):
+    text = sep.join(repr(v) for v in values)
+    row = parse_boxes(text)[0]
+    np.testing.assert_array_equal(Box.parse(text).as_array(), row)
+    valid = all(math.isfinite(v) for v in values) and values[2] > 0 and values[3] > 0
+    for parse in (parse_box, as_box):
+        if valid:
+            assert parse(text) == Box(*values)
+        else:
+            try:
+                parse(text)
+            except UsageError:
+                pass
+            else:
+                raise AssertionError(f"{parse.__name__} accepted {text!r}")
 
 
 @SETTINGS

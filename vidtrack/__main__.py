@@ -1,3 +1,5 @@
+"""``python -m vidtrack``: the ``vidtrack`` command (:func:`vidtrack.cli.main`)."""
+
 import sys
 
 from .cli import main

@@ -10,6 +10,12 @@ Two ways in, one loop underneath::
     for state in vidtrack.track("clip.mp4", (x, y, w, h), filter="mil"):
         print(state.index, state.box, state.confidence)
 
+A tracker's options are the fields of its frozen configuration
+(``vidtrack filters NAME`` lists them): top-level fields as keywords
+(``vidtrack.create("svk", seed=0, bins=8)``), any field by its dotted key in
+``settings`` (``settings={"svr.C": 2.0}``), as the command line's
+``--set KEY=VALUE`` does.
+
 :func:`track_frames` is the loop; the command line (:func:`vidtrack.run.run_tracker`,
 which ``vidtrack eval`` also calls per job) and :func:`track` both iterate it,
 so a box from the library equals the box the CLI writes.
@@ -19,20 +25,26 @@ from __future__ import annotations
 
 import time
 from pathlib import Path
-from typing import Any, Callable, Iterable, Iterator
+from typing import Any, Callable, Iterable, Iterator, Mapping, TypeVar
 
 import numpy as np
 
 from .errors import UsageError
-from .recipes import build_tracker, registry
+from .recipes import build_tracker, recipe_config, registry
 from .tracker import Tracker
 from .types import Box, Frame, TrackState
 
-__all__ = ["VidtrackTracker", "create", "filters", "track", "track_frames", "as_box", "as_image"]
+__all__ = ["VidtrackTracker", "create", "filters", "track", "track_frames", "tracker_config", "as_box", "as_image",
+           "check_inside"]
+
+_T = TypeVar("_T")
 
 
 def as_box(box: Any) -> Box:
-    """A :class:`~vidtrack.types.Box` from a Box or any 4-sequence ``x, y, w, h`` (0-based pixels).
+    """A :class:`~vidtrack.types.Box` from a Box, the text ``"x,y,w,h"`` or any 4-sequence (0-based pixels).
+
+    Text is read by :meth:`Box.parse <vidtrack.types.Box.parse>`, the parser
+    of the command line's ``--init-box`` and of the benchmark box files.
 
     Raises
     ------
@@ -41,6 +53,11 @@ def as_box(box: Any) -> Box:
     """
     if isinstance(box, Box):
         result = box
+    elif isinstance(box, str):
+        try:
+            result = Box.parse(box)
+        except ValueError:
+            raise UsageError(f"box must be four numbers x,y,w,h, got {box!r}") from None
     else:
         try:
             values = np.asarray(box, dtype=float).ravel()
@@ -52,6 +69,22 @@ def as_box(box: Any) -> Box:
     if not result.is_valid():
         raise UsageError(f"box must have finite coordinates and a positive width and height, got {result}")
     return result
+
+
+def check_inside(box: Box, width: int, height: int, *, what: str = "box") -> None:
+    """Reject an init ``box`` that does not lie mostly inside a ``width x height`` frame.
+
+    The one in-frame check of the command line, the API and TraX
+    (:meth:`Box.is_inside <vidtrack.types.Box.is_inside>`); ``what`` names
+    the box in the message (``--init-box``).
+
+    Raises
+    ------
+    UsageError
+        ``<what> x,y,w,h lies outside the WxH frame``.
+    """
+    if not box.is_inside(width, height):
+        raise UsageError(f"{what} {box} lies outside the {width}x{height} frame")
 
 
 def as_image(image: Any) -> np.ndarray:
@@ -88,7 +121,7 @@ class VidtrackTracker:
     Parameters
     ----------
     tracker
-        A :class:`~vidtrack.tracker.Tracker`, as :func:`~vidtrack.tracker.build_tracker` makes it.
+        A :class:`~vidtrack.tracker.Tracker`, as :func:`vidtrack.recipes.build_tracker` makes it.
     """
 
     def __init__(self, tracker: Tracker) -> None:
@@ -99,7 +132,7 @@ class VidtrackTracker:
 
     @property
     def name(self) -> str:
-        """The registered filter name (``mil``, ``kalman-cv`` ...)."""
+        """The registered tracker name (``mil``, ``kalman-cv`` ...)."""
         return self.tracker.name
 
     def init(self, image: np.ndarray, box: Any) -> None:
@@ -114,8 +147,7 @@ class VidtrackTracker:
         """
         image = as_image(image)
         box = as_box(box)
-        if box.clipped(image.shape[1], image.shape[0]).area < 0.5 * box.area:
-            raise UsageError(f"box {box} lies outside the {image.shape[1]}x{image.shape[0]} image")
+        check_inside(box, image.shape[1], image.shape[0])
         self.init_frame(Frame(0, image), box)
 
     def update(self, image: np.ndarray) -> tuple[bool, tuple[float, float, float, float]]:
@@ -154,24 +186,57 @@ class VidtrackTracker:
         return f"<vidtrack tracker {self.name!r}, state {self.state!r}>"
 
 
-def create(name: str, seed: int | None = 0, **options: Any) -> VidtrackTracker:
+def _naming(name: str, make: Callable[[], _T]) -> _T:
+    """``make()``, its UsageError about an option or a value of tracker ``name`` prefixed with the name."""
+    try:
+        return make()
+    except UsageError as exc:
+        if name not in registry() or str(exc).startswith(f"filter {name}"):
+            raise
+        raise UsageError(f"filter {name}: {exc}") from None
+
+
+def tracker_config(name: str, settings: Mapping[str, Any] | None = None, **options: Any) -> Any:
+    """The frozen configuration the tracker ``name`` is built from, with ``settings`` and ``options`` applied.
+
+    ``settings`` maps dotted keys (``svr.C``) to values or strings (as the
+    command line's ``--set`` gives them); ``options`` are top-level fields as
+    keywords and are applied last.  None for a tracker without options.
+
+    Raises
+    ------
+    UsageError
+        For an unknown name (the message lists the valid ones), or an option
+        the tracker does not take or a bad value (the message names the
+        tracker and lists its options).
+    """
+    return _naming(name, lambda: recipe_config(name, {**(settings or {}), **options}))
+
+
+def create(name: str, seed: int | None = 0, *, settings: Mapping[str, Any] | None = None,
+           **options: Any) -> VidtrackTracker:
     """A tracker registered as ``name`` (see :func:`filters`), in OpenCV's shape.
 
     Parameters
     ----------
     name
-        Filter name, as ``vidtrack --filter`` takes it.
+        Tracker name, as ``vidtrack --filter`` takes it.
     seed
         Random seed (the CLI's ``--seed``; default 0).
+    settings
+        Options by dotted key (``{"svr.C": 2.0}``; strings are converted to
+        the field's type), as the CLI's ``--config`` and ``--set`` give them.
     **options
-        Recipe options, as the CLI passes them (``model=``, ``detector=`` ...).
+        Top-level options as keywords (``model=``, ``detector=`` ...), applied
+        after ``settings``.
 
     Raises
     ------
     UsageError
-        For an unknown name or an option the filter does not take (the CLI's message).
+        For an unknown name, an option the tracker does not take or a bad
+        value (the CLI's message).
     """
-    return VidtrackTracker(build_tracker(name, seed=seed, **options))
+    return VidtrackTracker(_naming(name, lambda: build_tracker(name, seed=seed, settings=settings, **options)))
 
 
 def filters() -> dict[str, str]:
@@ -226,7 +291,7 @@ def track_frames(tracker: VidtrackTracker, frames: Iterable[Frame], box: Box, *,
 
 
 def track(source: Any, box: Any, filter: str = "mil", *, seed: int | None = 0, max_frames: int | None = None,
-          **options: Any) -> Iterator[TrackState]:
+          settings: Mapping[str, Any] | None = None, **options: Any) -> Iterator[TrackState]:
     """Track ``box`` through ``source``, yielding one :class:`~vidtrack.types.TrackState` per frame.
 
     Parameters
@@ -237,21 +302,22 @@ def track(source: Any, box: Any, filter: str = "mil", *, seed: int | None = 0, m
     box
         ``x, y, w, h`` of the object in the first frame, 0-based pixels.
     filter
-        Filter name (see :func:`filters`); default ``mil``.
-    seed, max_frames, **options
-        As for :func:`create`; stop after ``max_frames`` frames.
+        Tracker name (see :func:`filters`); default ``mil``.
+    seed, settings, **options
+        As for :func:`create`.
+    max_frames
+        Stop after this many frames.
 
     Raises
     ------
     UsageError, SourceError
         For a bad name, option, box or source (raised before the first frame is tracked).
     """
-    tracker = create(filter, seed=seed, **options)
+    tracker = create(filter, seed=seed, settings=settings, **options)
     box = as_box(box)
     frames = as_frames(source)
 
     def check(frame: Frame, box: Box) -> None:
-        if box.clipped(frame.width, frame.height).area < 0.5 * box.area:
-            raise UsageError(f"box {box} lies outside the {frame.width}x{frame.height} frame")
+        check_inside(box, frame.width, frame.height)
 
     return (state for _, state in track_frames(tracker, frames, box, max_frames=max_frames, validate_box=check))

@@ -105,7 +105,7 @@ def probe_container(path: Path) -> None:
             format_names = set(container.format.name.split(","))
             streams = list(container.streams.video)
             codecs = {stream.codec_context.name for stream in streams}
-    except (av.FFmpegError, OSError, ValueError) as exc:
+    except (av.FFmpegError, OSError, ValueError):
         raise SourceError(f"cannot decode video {path}: FFmpeg finds no video container in it") from None
     if format_names & TEXT_FORMATS or codecs & TEXT_CODECS:
         raise SourceError(f"not a video file: {path} (it is text)")

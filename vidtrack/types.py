@@ -24,6 +24,7 @@ Conventions
 
 from __future__ import annotations
 
+import re
 from dataclasses import dataclass, field
 from typing import Any, Literal, Mapping
 
@@ -32,6 +33,18 @@ import numpy as np
 Status = Literal["tracking", "lost"]
 TRACKING: Status = "tracking"
 LOST: Status = "lost"
+
+#: What separates the numbers of a box in text: commas, tabs, spaces or semicolons, in any mix.
+_SEPARATORS = re.compile(r"[,\s;]+")
+
+#: A box lies (mostly) inside a frame when at least this fraction of its area does.
+INSIDE_FRACTION = 0.5
+
+
+def split_numbers(text: str) -> list[str]:
+    """The fields of ``text`` separated by commas, tabs, spaces or semicolons (empty fields dropped)."""
+    return [part for part in _SEPARATORS.split(text) if part]
+
 
 @dataclass(frozen=True)
 class Box:
@@ -52,6 +65,30 @@ class Box:
         """Box from any 4-sequence ``x, y, w, h``."""
         x, y, w, h = (float(v) for v in values)
         return cls(x, y, w, h)
+
+    @classmethod
+    def parse(cls, text: str) -> "Box":
+        """Box from the text ``x,y,w,h``: the command line's ``--init-box`` and every row of a box file.
+
+        The four numbers may be separated by commas, tabs, spaces or
+        semicolons (the separators found in benchmark ground-truth files).
+        Values are not checked: ``nan`` or a zero size parse (a ground-truth
+        row "not annotated"); see :meth:`is_valid`.
+
+        Raises
+        ------
+        ValueError
+            ``not four numbers: '...'`` when a field is not a number,
+            ``expected 4 numbers x,y,w,h, got N`` when there are not four.
+        """
+        parts = split_numbers(text)
+        try:
+            values = [float(part) for part in parts]
+        except ValueError:
+            raise ValueError(f"not four numbers: {text.strip()[:60]!r}") from None
+        if len(values) != 4:
+            raise ValueError(f"expected 4 numbers x,y,w,h, got {len(values)}")
+        return cls(*values)
 
     @property
     def center(self) -> np.ndarray:
@@ -94,6 +131,14 @@ class Box:
     def is_valid(self) -> bool:
         """True when the box has finite coordinates and positive size."""
         return bool(np.all(np.isfinite(self.as_array())) and self.w > 0 and self.h > 0)
+
+    def is_inside(self, width: int, height: int) -> bool:
+        """True when the box lies mostly inside a ``width x height`` frame.
+
+        "Mostly" is at least :data:`INSIDE_FRACTION` of its area: an init box
+        may stick out of the frame a little, never mostly.
+        """
+        return self.clipped(width, height).area >= INSIDE_FRACTION * self.area
 
     def __str__(self) -> str:
         return f"{self.x:.2f},{self.y:.2f},{self.w:.2f},{self.h:.2f}"

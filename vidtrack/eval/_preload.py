@@ -4,10 +4,11 @@ Only imports (and the tracker registry): no tracker runs here, so every forked
 job still starts with pristine library state.
 """
 
-import tqdm  # noqa: F401
+import tqdm  # noqa: F401  (the command line's progress bar, which jobs may carry)
 
-from .. import cli, run, sources  # noqa: F401
-from . import experiment  # noqa: F401
+from ..run import run_tracker  # noqa: F401
+from ..sources import open_source  # noqa: F401
+from .jobs import run_job  # noqa: F401
 
 try:
     from ..recipes import registry

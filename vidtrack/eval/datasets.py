@@ -48,12 +48,11 @@ import numpy as np
 
 from ..errors import DatasetError, SourceError
 from ..sources import IMAGE_SUFFIXES
-from ..types import Box
+from ..types import Box, split_numbers
 
 OTB_IMAGES, MIL_IMAGES = "img", "imgs"
 OTB_GROUND_TRUTH = "groundtruth_rect.txt"
 MIL_FRAMES = "mil_frames.txt"
-_SEPARATORS = re.compile(r"[,\s;]+")
 _NUMBER = re.compile(r"(\d+)")
 
 
@@ -140,8 +139,10 @@ def annotated_rows(boxes: np.ndarray) -> np.ndarray:
 def parse_boxes(text: str, *, source: str = "boxes") -> np.ndarray:
     """Rows of ``x,y,w,h`` (separated by commas, tabs or spaces) -> ``(N, 4)`` floats.
 
-    Blank lines are ignored; ``NaN`` values are kept (not annotated); a
-    leading UTF-8 byte-order mark and CRLF line ends are accepted.
+    Each row is read by :meth:`Box.parse <vidtrack.types.Box.parse>`, the
+    parser of the command line's ``--init-box``.  Blank lines are ignored;
+    ``NaN`` values are kept (not annotated); a leading UTF-8 byte-order mark
+    and CRLF line ends are accepted.
 
     Raises
     ------
@@ -153,14 +154,11 @@ def parse_boxes(text: str, *, source: str = "boxes") -> np.ndarray:
         line = line.strip()
         if not line:
             continue
-        parts = [p for p in _SEPARATORS.split(line) if p]
         try:
-            values = [float(p) for p in parts]
-        except ValueError:
-            raise DatasetError(f"{source}, line {number}: not four numbers: {line[:60]!r}") from None
-        if len(values) != 4:
-            raise DatasetError(f"{source}, line {number}: expected 4 numbers x,y,w,h, got {len(values)}")
-        rows.append(values)
+            box = Box.parse(line)
+        except ValueError as exc:
+            raise DatasetError(f"{source}, line {number}: {exc}") from None
+        rows.append((box.x, box.y, box.w, box.h))
     return np.array(rows, dtype=float).reshape(-1, 4)
 
 
@@ -209,7 +207,7 @@ def _mil_file(folder: Path, suffix: str) -> Path | None:
 
 def _read_frames_range(path: Path) -> tuple[int, int]:
     text = path.read_text(encoding="utf-8-sig", errors="replace")
-    numbers = [p for p in _SEPARATORS.split(text.strip()) if p]
+    numbers = split_numbers(text)
     try:
         start, end = (int(float(p)) for p in numbers[:2])
     except ValueError:
@@ -297,7 +295,7 @@ def check_init_box(sequence: BenchmarkSequence, gt_name: str) -> None:
         width, height = check_same_size(list(sequence.files))  # headers only: ~0.1 ms per frame
     except SourceError as exc:
         raise DatasetError(f"sequence {sequence.name}: {exc}") from None
-    if box.clipped(width, height).area < 0.5 * box.area:
+    if not box.is_inside(width, height):
         raise DatasetError(f"sequence {sequence.name}: {gt_name} row {row + 1}: the init box "
                            f"{sequence.ground_truth_box(row)} lies outside the {width}x{height} frame")
 

@@ -303,7 +303,7 @@ def render_report(summary: Mapping[str, Mapping[str, Mapping[str, Any]]], sequen
     Parameters
     ----------
     summary
-        :attr:`vidtrack.eval.experiment.Evaluation.summary`.
+        :attr:`vidtrack.eval.evaluation.Evaluation.summary`.
     sequences
         The evaluated :class:`~vidtrack.eval.datasets.BenchmarkSequence` s (frames for the thumbnails).
     out
@@ -314,7 +314,7 @@ def render_report(summary: Mapping[str, Mapping[str, Mapping[str, Any]]], sequen
         PNG files to inline (missing ones are left out).
     """
     from .datasets import read_boxes
-    from .experiment import result_paths
+    from .results import result_paths
     from .metrics import iou
 
     out = Path(out)

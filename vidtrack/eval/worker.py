@@ -11,9 +11,12 @@ that crashes the interpreter (a segfault in native code) to its own job.
 * :func:`run_isolated` (daemonic processes such as Dask's default workers,
   which multiprocessing does not let have children): ``python -m
   vidtrack.eval.worker JOB OUT`` with pickle files (a
-  :class:`~vidtrack.eval.experiment.Job` in, a
-  :class:`~vidtrack.eval.experiment.JobOutput` out); seconds per job.
+  :class:`~vidtrack.eval.jobs.Job` in, a
+  :class:`~vidtrack.eval.jobs.JobOutput` out); seconds per job.
 * :func:`run_fresh` picks one of the two.
+
+This module runs jobs (:mod:`vidtrack.eval.jobs`); the one that decides
+where they run (:mod:`vidtrack.eval.running`) imports it, never the reverse.
 """
 
 from __future__ import annotations
@@ -25,6 +28,7 @@ import sys
 import tempfile
 from pathlib import Path
 
+from .jobs import Job, JobOutput, run_job
 
 _CONTEXT = None
 
@@ -40,9 +44,7 @@ def _fork_context():
     return _CONTEXT
 
 
-def _forked_child(job, connection) -> None:
-    from .experiment import run_job
-
+def _forked_child(job: Job, connection) -> None:
     try:
         output = run_job(job)
     except KeyboardInterrupt:
@@ -51,17 +53,15 @@ def _forked_child(job, connection) -> None:
     connection.close()
 
 
-def _died(job, code: int | None):
-    from .experiment import JobOutput
-
+def _died(job: Job, code: int | None) -> JobOutput:
     if code == 130:
         raise KeyboardInterrupt
     reason = f"killed by signal {-code}" if code is not None and code < 0 else f"exit code {code}"
     return JobOutput(job.filter_name, job.sequence.name, "failed", error=f"worker process died ({reason})")
 
 
-def run_forked(job):
-    """Run ``job`` (see :func:`~vidtrack.eval.experiment.run_job`) in a process forked from the fork server.
+def run_forked(job: Job) -> JobOutput:
+    """Run ``job`` (see :func:`~vidtrack.eval.jobs.run_job`) in a process forked from the fork server.
 
     A child that dies without an answer gives a ``failed`` output.
     """
@@ -80,8 +80,8 @@ def run_forked(job):
     return output if output is not None else _died(job, process.exitcode)
 
 
-def run_isolated(job):
-    """Run ``job`` (see :func:`~vidtrack.eval.experiment.run_job`) in a child interpreter.
+def run_isolated(job: Job) -> JobOutput:
+    """Run ``job`` (see :func:`~vidtrack.eval.jobs.run_job`) in a child interpreter.
 
     The child's progress bar goes to this process's stderr.  A child that
     dies without an answer gives a ``failed`` output.
@@ -97,8 +97,7 @@ def run_isolated(job):
 
 
 def main(argv: list[str]) -> int:
-    from .experiment import run_job
-
+    """``python -m vidtrack.eval.worker JOB.pkl OUT.pkl``: run the pickled job, pickle its output (exit 0)."""
     job = pickle.loads(Path(argv[0]).read_bytes())
     try:
         output = run_job(job)
@@ -110,7 +109,7 @@ def main(argv: list[str]) -> int:
     return 0
 
 
-def run_fresh(job):
+def run_fresh(job: Job) -> JobOutput:
     """:func:`run_forked` where this process may have children, else :func:`run_isolated`."""
     import multiprocessing
 

@@ -26,7 +26,8 @@ from typing import Sequence
 
 import numpy as np
 
-from .errors import DatasetError, OutputError, UsageError
+from ..errors import DatasetError, OutputError, UsageError
+from .common import EXIT_OK, OneLineParser, check_box_in_frame, parse_init_box
 
 
 def _interpolated_tracks(centres: np.ndarray, annotated: np.ndarray, max_gap: int) -> list[np.ndarray]:
@@ -50,8 +51,8 @@ def _interpolated_tracks(centres: np.ndarray, annotated: np.ndarray, max_gap: in
 
 
 def learn_from_dataset(path: str, *, order: int, names: list[str] | None, max_gap: int, prior_weight: float):
-    from .eval.datasets import load_dataset
-    from .filters.channels import (CBTFilter, CBTModel, ChannelBasis, conditional_from_counts,
+    from ..eval.datasets import load_dataset
+    from ..filters.channels import (CBTFilter, CBTModel, ChannelBasis, conditional_from_counts,
                                    displacement_counts, random_walk_displacement)
 
     defaults = CBTFilter()
@@ -77,13 +78,12 @@ def learn_from_dataset(path: str, *, order: int, names: list[str] | None, max_ga
 
 
 def learn_from_video(path: str, init_box: str, *, order: int, max_frames: int | None, prior_weight: float):
-    from .cli import check_box_in_frame, parse_box
-    from .filters.channels import CBTModel
-    from .run import run_tracker
-    from .sources import open_source
-    from .recipes import build_tracker
+    from ..filters.channels import CBTModel
+    from ..recipes import build_tracker
+    from ..run import run_tracker
+    from ..sources import open_source
 
-    box = parse_box(init_box)
+    box = parse_init_box(init_box)
     tracker = build_tracker("cbt", seed=0, order=order, relearn_every=1, prior_weight=prior_weight)
     result = run_tracker(tracker, open_source(path), box, max_frames=max_frames, validate_box=check_box_in_frame)
     filt = tracker.filter.inner  # CBTFilter inside its MeasuredSizeFilter
@@ -94,8 +94,7 @@ def learn_from_video(path: str, init_box: str, *, order: int, max_frames: int | 
 
 
 def main(argv: Sequence[str]) -> int:
-    from .cli import OneLineParser
-
+    """``vidtrack learn cbt SOURCE --out FILE.npz``: exit 0, or 2 on bad input."""
     parser = OneLineParser(prog="vidtrack learn", description="Learn a model for a filter that takes one.")
     parser.add_argument("kind", choices=["cbt"], help="what to learn (cbt: Channel-Based Tracking motion model)")
     parser.add_argument("source", metavar="VIDEO_OR_DATASET",
@@ -117,7 +116,7 @@ def main(argv: Sequence[str]) -> int:
     source = Path(args.source)
     if not source.exists():
         raise UsageError(f"no such video or dataset: {args.source}")
-    from .eval.datasets import find_sequences
+    from ..eval.datasets import find_sequences
 
     is_dataset = False
     if source.is_dir() and args.init_box is None:
@@ -141,4 +140,4 @@ def main(argv: Sequence[str]) -> int:
     except OSError as exc:
         raise OutputError(f"cannot write {args.out}: {exc.strerror or exc}") from None
     print(f"vidtrack learn: cbt model of order {model.order} from {what}; wrote {args.out}", file=sys.stderr)
-    return 0
+    return EXIT_OK

@@ -8,6 +8,7 @@ update) and ``learn (other)`` (time in ``learn`` not in a named stage).
 A measurer that runs a stage in a second thread (``mil``'s correlation
 filter) reports it in ``cf_timings_``; those are printed apart, since
 they overlap the others, and the main thread's wait for them is its own stage.
+The tracker options are set as for tracking (``--config``, ``--set`` ...).
 """
 
 from __future__ import annotations
@@ -17,32 +18,36 @@ import time
 from collections import defaultdict
 from typing import Sequence
 
-from .errors import UsageError
+from ..errors import UsageError
+from .common import (EXIT_OK, OneLineParser, add_filter_argument, add_settings_arguments, check_box_in_frame,
+                     check_settings, default_filter, parse_init_box, tracker_settings)
 
 
-def build_parser():
-    from .cli import OneLineParser
-
+def build_parser() -> OneLineParser:
     parser = OneLineParser(prog="vidtrack bench",
                            description="Time every stage of a tracker per frame on a video or frame folder.")
     parser.add_argument("video", help="video file or folder of frame images")
     parser.add_argument("--init-box", required=True, metavar="x,y,w,h", help="the object's box in the first frame")
-    parser.add_argument("--filter", default="mil", metavar="NAME", help="tracker to time (default mil)")
+    add_filter_argument(parser)
     parser.add_argument("--max-frames", type=int, default=300, metavar="N", help="frames to time (default 300)")
     parser.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
+    add_settings_arguments(parser)
     return parser
 
 
 def main(argv: Sequence[str]) -> int:
-    from .cli import check_box_in_frame, parse_box
-    from .sources import open_source
-    from .recipes import build_tracker
+    """``vidtrack bench VIDEO --init-box ...``: the table on stdout, exit 0 (2 on bad input)."""
+    from ..recipes import build_tracker
+    from ..sources import open_source
 
     args = build_parser().parse_args(list(argv))
     if args.max_frames < 2:
         raise UsageError("--max-frames must be at least 2")
-    box = parse_box(args.init_box)
-    tracker = build_tracker(args.filter, seed=args.seed)
+    box = parse_init_box(args.init_box)
+    name = args.filter or default_filter()
+    settings = tracker_settings(args)
+    check_settings(name, settings)
+    tracker = build_tracker(name, seed=args.seed, settings=settings)
     source = iter(open_source(args.video))
     totals: dict[str, float] = defaultdict(float)
     frames = 0
@@ -95,7 +100,7 @@ def main(argv: Sequence[str]) -> int:
         totals.update(stage_time)
     order = ["decode", "superpixels", "features", "svm", "graphcut", "measure (other)", "filter", "learn (other)"]
     names = [n for n in order if n in totals] + sorted(n for n in totals if n not in order)
-    print(f"vidtrack bench: {args.filter} on {args.video}, {frames} frames after the first")
+    print(f"vidtrack bench: {name} on {args.video}, {frames} frames after the first")
     print(f"{'stage':<16}{'ms/frame':>10}{'share':>8}")
     total_ms = sum(totals.values()) / frames * 1000
     for name in names:
@@ -110,4 +115,4 @@ def main(argv: Sequence[str]) -> int:
     # on a shared machine the wall clock also counts other processes' turns; the CPU time does not
     print(f"tracking fps by this process's CPU time: {frames / max(cpu, 1e-9):.1f}")
     sys.stdout.flush()
-    return 0
+    return EXIT_OK

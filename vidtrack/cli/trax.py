@@ -6,7 +6,8 @@ over a local socket when the client sets ``TRAX_SOCKET``; the reference
 implementation, PyPI's ``vot-trax``, handles both.  The server answers
 
 * ``INITIALIZE`` (image + rectangle): builds a fresh tracker (``--filter``,
-  ``--seed``, options) and starts it on the box.  A client may initialise
+  ``--seed``, the tracker options ``--config``, ``--set`` ...) and starts it on
+  the box, which must lie mostly inside the image (:func:`vidtrack.api.check_inside`).  A client may initialise
   again at any time over the same connection (the toolkit does after a
   failure): the tracker starts afresh, as ``vidtrack eval`` starts each job.
 * ``FRAME`` (image): one tracker step; the reply is the box and the
@@ -22,29 +23,26 @@ protocol is written to stdout: messages go to stderr.
 from __future__ import annotations
 
 import argparse
-import sys
 from typing import Any, Sequence
 
 import numpy as np
 
-from .errors import SourceError, UsageError, VidtrackError
+from ..errors import SourceError, UsageError, VidtrackError
+from .common import EXIT_OK, OneLineParser, add_filter_argument, add_settings_arguments, default_filter, \
+    tracker_settings
 
 DESCRIPTION = ("Serve a vidtrack tracker over the TraX protocol (the VOT toolkit's), on stdin/stdout "
                "or on the socket the client names in TRAX_SOCKET.")
 
 
-def build_parser():
-    from .cli import OneLineParser
-
+def build_parser() -> OneLineParser:
     parser = OneLineParser(prog="vidtrack trax", description=DESCRIPTION,
                            epilog="In the VOT toolkit's trackers.ini: protocol = trax, "
                                   "command = /absolute/path/to/vidtrack trax --filter NAME")
-    parser.add_argument("--filter", default=None, metavar="NAME",
-                        help="tracker to serve (default mil); `vidtrack filters` lists them")
+    add_filter_argument(parser)
     parser.add_argument("--seed", type=int, default=0, help="random seed of every (re-)initialised tracker")
-    parser.add_argument("--model", metavar="FILE", help="a learned model file for filters that take one (cbt)")
-    parser.add_argument("--detector", metavar="NAME", help="detector for score-map filters (e.g. face)")
     parser.add_argument("--trax-log", metavar="FILE", help="write libtrax's protocol log here")
+    add_settings_arguments(parser)
     return parser
 
 
@@ -77,7 +75,7 @@ def read_image(image: Any) -> np.ndarray:
 
 def region_box(region: Any):
     """A TraX region -> :class:`~vidtrack.types.Box` (its bounding rectangle)."""
-    from .api import as_box
+    from ..api import as_box
 
     x, y, w, h = region.bounds()
     return as_box((x, y, w, h))
@@ -100,7 +98,8 @@ def serve(server: Any, make_tracker) -> int:
     """
     from trax import TraxStatus
 
-    from .types import Frame
+    from ..api import check_inside
+    from ..types import Frame
 
     tracker = None
     frames = 0
@@ -115,8 +114,10 @@ def serve(server: Any, make_tracker) -> int:
         if request.type == TraxStatus.INITIALIZE:
             if not request.objects:
                 raise UsageError("TraX INITIALIZE without a region")
+            box = region_box(request.objects[0][0])
+            check_inside(box, image.shape[1], image.shape[0], what="TraX region")
             tracker = make_tracker()
-            state = tracker.init_frame(Frame(0, image), region_box(request.objects[0][0]))
+            state = tracker.init_frame(Frame(0, image), box)
         else:
             if tracker is None:
                 raise UsageError("TraX FRAME before INITIALIZE")
@@ -127,13 +128,12 @@ def serve(server: Any, make_tracker) -> int:
 
 def main(argv: Sequence[str]) -> int:
     """``vidtrack trax --filter NAME [options]``: serve until the client quits (exit 0)."""
-    from .api import create
-    from .cli import default_filter, tracker_options
+    from ..api import create
 
     args: argparse.Namespace = build_parser().parse_args(argv)
     name = args.filter or default_filter()
-    options = tracker_options(args)
-    create(name, seed=args.seed, **options)   # a bad name or option: one line, exit 2, before any protocol
+    settings = tracker_settings(args)
+    create(name, seed=args.seed, settings=settings)   # a bad name or option: one line, exit 2, before any protocol
 
     import cv2
     from trax import Image, Server, TraxException
@@ -142,7 +142,7 @@ def main(argv: Sequence[str]) -> int:
     def make_tracker():
         # as eval does per job: OpenCV's global RNG restarts, so a re-initialised tracker equals a fresh one
         cv2.setRNGSeed(args.seed)
-        return create(name, seed=args.seed, **options)
+        return create(name, seed=args.seed, settings=settings)
 
     try:
         server = Server([Region.RECTANGLE], [Image.PATH, Image.MEMORY], tracker_name=f"vidtrack-{name}",
@@ -158,10 +158,4 @@ def main(argv: Sequence[str]) -> int:
     except TraxException as exc:   # the client went away or broke the protocol
         raise UsageError(f"TraX connection failed: {exc}") from None
     server.quit()
-    return 0
-
-
-if __name__ == "__main__":
-    from .cli import main as cli_main
-
-    sys.exit(cli_main(["trax", *sys.argv[1:]]))
+    return EXIT_OK

@@ -1,6 +1,8 @@
 """``vidtrack eval DATASET_DIR --filter a,b,c``: run trackers on benchmark sequences and score them.
 
 ``vidtrack eval --compare DIR_A DIR_B`` tables the change in AUC between two such evaluations.
+The tracker options (``--config``, ``--set`` ...) apply to every tracker listed
+(:mod:`vidtrack.cli.common`); the evaluation itself is :mod:`vidtrack.eval`.
 """
 
 from __future__ import annotations
@@ -9,6 +11,8 @@ import sys
 from pathlib import Path
 
 from ..errors import UsageError
+from .common import (EXIT_FAILED, EXIT_OK, OneLineParser, add_settings_arguments, check_settings, progress_bar,
+                     tracker_settings)
 
 EPILOG = """\
 Writes OUT/<filter>/<Sequence>.txt (one x,y,w,h line per ground-truth line, in that sequence's own
@@ -17,14 +21,14 @@ record and a .confidence.csv (per-frame confidence and status) beside it, OUT/su
 OUT/summary.md, OUT/success.png, OUT/precision.png, OUT/attributes.png (success AUC per OTB
 attribute, from DATASET_DIR/attr_list.txt or --attributes) and OUT/report.html (everything in one
 self-contained page, with thumbnails of the frames where the best tracker fails).
-Existing results of a matching run are reused unless --force.
+Existing results of a matching run (same tracker, sequence, seed, frames and effective options) are
+reused unless --force.  The tracker options (--config, --model, --detector, --set) apply to every
+tracker listed; one a listed tracker does not take is an error naming that tracker.
 --compare DIR_A DIR_B prints per tracker and sequence AUC(B) - AUC(A) from the two summary.json.
 """
 
 
-def build_parser():
-    from ..cli import OneLineParser
-
+def build_parser() -> OneLineParser:
     parser = OneLineParser(prog="vidtrack eval", epilog=EPILOG,
                            description="Evaluate trackers on benchmark sequences (OTB or MIL layout): "
                                        "OTB success AUC, precision@20, PASCAL score, centre error, fps.")
@@ -52,6 +56,7 @@ def build_parser():
     parser.add_argument("--rerun", metavar="DIR", help="also write DIR/<filter>/<Sequence>.rrd Rerun recordings")
     parser.add_argument("--no-plots", action="store_true", help="skip the success and precision plots")
     parser.add_argument("-q", "--quiet", action="store_true", help="no progress bars or messages")
+    add_settings_arguments(parser)
     return parser
 
 
@@ -67,13 +72,13 @@ def _names(text: str, option: str) -> list[str]:
 
 def main(argv: list[str]) -> int:
     """Entry point of ``vidtrack eval`` (exit 0, or 2 on bad input; 1 when a tracker failed)."""
+    from ..eval.attributes import by_attribute
+    from ..eval.datasets import load_dataset
+    from ..eval.evaluation import run_evaluation
+    from ..eval.html_report import write_report
+    from ..eval.plots import attribute_plot, write_plots
+    from ..eval.report import format_attribute_table, format_confidence_table, format_table, write_summary
     from ..recipes import registry
-    from .datasets import load_dataset
-    from .experiment import run_evaluation
-    from .attributes import by_attribute
-    from .html_report import write_report
-    from .plots import attribute_plot, write_plots
-    from .report import format_attribute_table, format_confidence_table, format_table, write_summary
 
     args = build_parser().parse_args(argv)
     if args.compare:
@@ -93,6 +98,9 @@ def main(argv: list[str]) -> int:
         raise UsageError("--in-process runs one job at a time: drop --jobs or --scheduler")
     if args.max_frames is not None and args.max_frames < 1:
         raise UsageError("--max-frames must be at least 1")
+    settings = tracker_settings(args)
+    for name in filters:
+        check_settings(name, settings)   # names the tracker that does not take an option
     if args.rerun:
         try:
             from ..sinks import rerun  # noqa: F401  (fail now, not after the first sequence)
@@ -115,9 +123,9 @@ def main(argv: list[str]) -> int:
                   file=sys.stderr)
 
     evaluation = run_evaluation(sequences, filters, args.out, seed=args.seed, max_frames=args.max_frames,
-                                force=args.force, workers=args.jobs, scheduler=args.scheduler,
-                                isolate=not args.in_process,
-                                rerun_dir=args.rerun, quiet=args.quiet, on_output=report)
+                                settings=settings, force=args.force, workers=args.jobs, scheduler=args.scheduler,
+                                isolate=not args.in_process, rerun_dir=args.rerun,
+                                progress=None if args.quiet else progress_bar, on_output=report)
     per_attribute = by_attribute(evaluation.summary, attributes) if attributes else None
     json_path, md_path = write_summary(args.out, evaluation.summary, per_attribute)
     written = [json_path, md_path]
@@ -136,12 +144,12 @@ def main(argv: list[str]) -> int:
         print(f"vidtrack eval: {counts['done']} run, {counts['reused']} reused, {counts['failed']} failed; "
               f"wrote {', '.join(str(p) for p in written)} and {Path(args.out)}/<filter>/<Sequence>.txt",
               file=sys.stderr)
-    return 1 if "failed" in evaluation.status.values() else 0
+    return EXIT_FAILED if "failed" in evaluation.status.values() else EXIT_OK
 
 
 def _attributes(option: str | None, dataset: str) -> dict[str, tuple[str, ...]] | None:
     """The attribute table from ``--attributes FILE``, else the dataset's ``attr_list.txt``, else None."""
-    from .attributes import find_attribute_file, read_attributes
+    from ..eval.attributes import find_attribute_file, read_attributes
 
     if option is not None:
         if not Path(option).is_file():
@@ -152,9 +160,9 @@ def _attributes(option: str | None, dataset: str) -> dict[str, tuple[str, ...]] 
 
 
 def _compare(dir_a: str, dir_b: str) -> int:
-    from .compare import compare, format_comparison, read_summary
+    from ..eval.compare import compare, format_comparison, read_summary
 
     a, b = read_summary(dir_a), read_summary(dir_b)
     print(f"AUC change from A = {dir_a} to B = {dir_b} (change = B - A; |change| >= 0.05 marked)")
     print(format_comparison(compare(a, b)))
-    return 0
+    return EXIT_OK

@@ -1,0 +1,78 @@
+"""The files of an evaluation: where a result lives, how it is written and how its record is read.
+
+Running (:mod:`vidtrack.eval.running`) writes them and scoring
+(:mod:`vidtrack.eval.scoring`) reads them; nothing else passes between the two
+(DESIGN.md: evaluation goes through files)::
+
+    OUT/<filter>/<Sequence>.txt     one x,y,w,h line per ground-truth row, in the
+                                    sequence's own convention; rows not tracked
+                                    (outside the MIL frames range, before the init
+                                    frame, past --max-frames) are 0,0,0,0
+    OUT/<filter>/<Sequence>.json    the run record: fps of *that* run, tracked rows,
+                                    seed, max_frames, the tracker's effective settings
+                                    (every option of its configuration), so a resumed
+                                    evaluation reports honest fps and reuses only
+                                    results made the same way
+    OUT/<filter>/<Sequence>.confidence.csv  the tracker's per-frame confidence and
+                                    status (:mod:`vidtrack.eval.confidence`)
+"""
+
+from __future__ import annotations
+
+import json
+import os
+from pathlib import Path
+from typing import Any
+
+from ..errors import OutputError
+from .confidence import confidence_path
+
+#: Version of the run record's format; a record of another version is never reused.
+RECORD_VERSION = 2
+#: A result row the tracker did not track.
+NOT_TRACKED = "0,0,0,0"
+
+
+def result_paths(out: str | Path, filter_name: str, sequence_name: str) -> tuple[Path, Path]:
+    """``(OUT/<filter>/<Sequence>.txt, OUT/<filter>/<Sequence>.json)``."""
+    folder = Path(out) / filter_name
+    return folder / f"{sequence_name}.txt", folder / f"{sequence_name}.json"
+
+
+def write_atomic(path: Path, text: str) -> None:
+    """Write ``text`` to ``path`` through a ``.part`` file, so a reader never sees half of it.
+
+    Raises
+    ------
+    OutputError
+        When the file cannot be written.
+    """
+    tmp = path.with_name(path.name + ".part")
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        tmp.write_text(text, encoding="utf-8")
+        os.replace(tmp, path)
+    except OSError as exc:
+        raise OutputError(f"cannot write {path}: {exc.strerror or exc}") from None
+
+
+def write_result(out: str | Path, filter_name: str, sequence_name: str, lines: list[str], record: dict[str, Any],
+                 confidence: str | None = None) -> None:
+    """Write a finished run's result file, its confidence file, then its record (the record marks it complete)."""
+    txt, record_path = result_paths(out, filter_name, sequence_name)
+    write_atomic(txt, "\n".join(lines) + "\n")
+    if confidence is not None:
+        write_atomic(confidence_path(txt), confidence)
+    write_atomic(record_path, json.dumps(record, indent=1) + "\n")
+
+
+def read_record(out: str | Path, filter_name: str, sequence_name: str) -> dict[str, Any] | None:
+    """The record of a complete result (result, confidence and record files present), else None."""
+    txt, record_path = result_paths(out, filter_name, sequence_name)
+    if not (txt.is_file() and record_path.is_file() and confidence_path(txt).is_file()):
+        return None
+    try:
+        record = json.loads(record_path.read_text(encoding="utf-8"))
+    except (OSError, ValueError):
+        return None
+    return record if isinstance(record, dict) else None
