@@ -21,9 +21,8 @@ extension off, decided field by field:
   or not the target was measured (eq. 8's covariance still sets the search
   region, ``superpixels.lam = 3``);
 * ``kalman``: the paper's constant-velocity ``F`` (``size_damping = 1``),
-  also while coasting (``coast_damping = 1``: the paper's open loop), and a
-  centre measurement noise ``r_centre = 0.15`` for an inlier centroid (the
-  default 0.08 is for the centre the correlation filter refines);
+  also while coasting (``coast_damping = 1``: the paper's open loop); the
+  paper gives no noise covariances, so they are ``mil``'s;
 * what the paper fixes is the same in both: ``lam = 3``, ``gamma_max = 25``,
   an update every 6 frames, positives at 70 % of their area in the box,
   Pegasos on chi-squared feature maps, the graph cut inside the positive
@@ -65,7 +64,7 @@ MIL = MILConfig()
 MIL_PAPER = MILConfig(
     graphcut=GraphCutConfig(lost_bag=False),
     fusion=FusionConfig(refine=False, size_from="inliers", redetect=False, present=None),
-    kalman=KalmanConfig(r_centre=0.15, coast_damping=1.0, size_damping=1.0),
+    kalman=KalmanConfig(coast_damping=1.0, size_damping=1.0),
 )
 
 RECIPES = {
