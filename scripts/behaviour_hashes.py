@@ -9,6 +9,7 @@ timing fields removed, the only part of it that varies from run to run)::
     ...  # change the code
     python scripts/behaviour_hashes.py ../shared/data/sequences --check before.json
 
+``--keep DIR`` keeps the outputs; ``--rehash DIR`` hashes kept outputs again without running anything.
 ``--check`` exits 1 and names every result whose hash differs; trackers or experiments present on
 one side only are listed, not counted as differences.  The default sequences are two of the *tune*
 split and two of *validate*, short ones so a full run takes a few minutes.
@@ -46,12 +47,14 @@ def registered_filters() -> list[str]:
     return [line.split()[0] for line in lines if line.strip() and not line.startswith(" ")]
 
 
-def without_timing(value):
-    """``value`` (parsed JSON) with every timing field removed, recursively."""
+def without_timing(value, folder: str = ""):
+    """``value`` (parsed JSON) without its timing fields and with paths into ``folder`` made relative, recursively."""
     if isinstance(value, dict):
-        return {k: without_timing(v) for k, v in value.items() if not TIMING_KEY.search(k)}
+        return {k: without_timing(v, folder) for k, v in value.items() if not TIMING_KEY.search(k)}
     if isinstance(value, list):
-        return [without_timing(v) for v in value]
+        return [without_timing(v, folder) for v in value]
+    if folder and isinstance(value, str) and value.startswith(folder):
+        return value[len(folder):].lstrip("/")
     return value
 
 
@@ -59,23 +62,26 @@ def sha256(data: bytes) -> str:
     return hashlib.sha256(data).hexdigest()
 
 
+def hash_outputs(folder: Path) -> dict[str, str]:
+    """The hashes of the result files under ``folder/eval`` and the JSON tables under ``folder/reproduce``."""
+    hashes: dict[str, str] = {}
+    for path in sorted((folder / "eval").glob("*/*.txt")):
+        hashes[f"eval/{path.parent.name}/{path.name}"] = sha256(path.read_bytes())
+    tables = folder / "reproduce"
+    for path in sorted(tables.glob("*.json")):
+        content = without_timing(json.loads(path.read_text()), str(tables))
+        hashes[f"reproduce/{path.name}"] = sha256(json.dumps(content, sort_keys=True).encode())
+    return hashes
+
+
 def fingerprint(dataset: str, sequences: str, seed: int, jobs: int, keep: str | None = None) -> dict[str, str]:
     """``{"eval/<filter>/<Sequence>.txt": sha, "reproduce/<name>.json": sha}`` from fresh runs (kept in ``keep``)."""
-    hashes: dict[str, str] = {}
     with tempfile.TemporaryDirectory() as scratch:
-        tmp = keep or scratch
-        out = Path(tmp) / "eval"
-        filters = registered_filters()
-        vidtrack("eval", dataset, "--sequences", sequences, "--filter", ",".join(filters), "--seed", str(seed),
-                 "--out", str(out), "--jobs", str(jobs), "--no-plots", "-q")
-        for path in sorted(out.glob("*/*.txt")):
-            hashes[f"eval/{path.parent.name}/{path.name}"] = sha256(path.read_bytes())
-        tables = Path(tmp) / "reproduce"
-        vidtrack("reproduce", "all", "--out", str(tables), "--seed", str(seed), "-q")
-        for path in sorted(tables.glob("*.json")):
-            content = without_timing(json.loads(path.read_text()))
-            hashes[f"reproduce/{path.name}"] = sha256(json.dumps(content, sort_keys=True).encode())
-    return hashes
+        folder = Path(keep or scratch)
+        vidtrack("eval", dataset, "--sequences", sequences, "--filter", ",".join(registered_filters()),
+                 "--seed", str(seed), "--out", str(folder / "eval"), "--jobs", str(jobs), "--no-plots", "-q")
+        vidtrack("reproduce", "all", "--out", str(folder / "reproduce"), "--seed", str(seed), "-q")
+        return hash_outputs(folder)
 
 
 def compare(before: dict[str, str], after: dict[str, str]) -> list[str]:
@@ -88,16 +94,22 @@ def compare(before: dict[str, str], after: dict[str, str]) -> list[str]:
 
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("dataset", help="folder of sequence folders (e.g. ../shared/data/sequences)")
+    parser.add_argument("dataset", nargs="?", help="folder of sequence folders (e.g. ../shared/data/sequences)")
     parser.add_argument("--sequences", default=DEFAULT_SEQUENCES, help=f"default {DEFAULT_SEQUENCES}")
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--jobs", type=int, default=2)
     parser.add_argument("--keep", metavar="DIR", help="keep the eval results and the JSON tables in DIR")
+    parser.add_argument("--rehash", metavar="DIR", help="run nothing: hash the outputs an earlier --keep DIR holds")
     target = parser.add_mutually_exclusive_group(required=True)
     target.add_argument("--write", metavar="FILE.json", help="write the hashes to FILE")
     target.add_argument("--check", metavar="FILE.json", help="compare with the hashes in FILE; exit 1 on a change")
     args = parser.parse_args()
-    hashes = fingerprint(args.dataset, args.sequences, args.seed, args.jobs, args.keep)
+    if args.rehash:
+        hashes = hash_outputs(Path(args.rehash))
+    elif args.dataset:
+        hashes = fingerprint(args.dataset, args.sequences, args.seed, args.jobs, args.keep)
+    else:
+        parser.error("give DATASET (or --rehash DIR)")
     for key, value in hashes.items():
         print(f"{value}  {key}")
     if args.write:
