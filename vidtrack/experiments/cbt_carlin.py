@@ -57,7 +57,8 @@ import time
 
 import numpy as np
 
-from ..filters.channels import ChannelBasis, ChannelBayesFilter, decode, encode, history_prior, shift_matrix
+from ..channels import ChannelBasis, decode, encode, history_prior, shift_matrix
+from ..filters.channels import ChannelBayesFilter
 from ..filters.ekf import ExtendedKalmanFilter
 from ..filters.grid_bayes import GridBayesFilter, gaussian_transition
 from ..filters.particle import sir_step, systematic_resample

@@ -80,7 +80,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..filters.channels import ChannelBasis, PlanarCBT, conditional_from_counts, encode
+from ..channels import ChannelBasis, conditional_from_counts, encode
+from ..filters.channels import PlanarCBT
 from ..filters.kalman import motion_model
 from ..filters.pdaf import PDAF
 from ..filters.pmht import PMHT
