@@ -276,7 +276,7 @@ def test_size_budget_on_a_real_320x240_sequence(tmp_path):
     assert out.stat().st_size / n < 60 * 1024
 
 
-#: Entities each paper filter must show (issue 8), beyond those every filter shows.
+#: Entities each paper filter must show (its own stages and scalars), beyond those every filter shows.
 FILTER_ENTITIES = {
     "mil": {"stages/superpixels", "stages/svm_scores", "stages/inliers", "filter/inlier_count",
             "filter/svm_margin"},
