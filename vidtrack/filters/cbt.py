@@ -172,7 +172,7 @@ class CBTFilter:
         return self.estimate_
 
     def likelihood(self, detections: Detections) -> np.ndarray:
-        """``h(z)`` over the current-centre channel grid ``(C_x, C_y)`` (:func:`product_likelihood`)."""
+        """``h(z)`` over the current-centre channel grid ``(C_x, C_y)`` (:func:`~vidtrack.filters.channels.product_likelihood`)."""
         s = None
         if len(detections.points):
             scores = np.asarray(detections.scores, float)
