@@ -35,7 +35,7 @@ its mean and standard deviation over the runs.
 
 The true path (``--true-path``): the paper does not give it.  ``seed``
 (the default) is one path for every run, speed 1 for the first ``T/2``
-steps, then at rest (RMS 81.2 for ``T = 200``); ``random`` draws a new
+steps, then at rest (RMS 81.5 for ``T = 200``); ``random`` draws a new
 path per run, segments of 20-60 steps, each at rest or moving at a constant
 velocity uniform in ``[-1, 1]``.  The trackers see the same noise in a run;
 the Gaussian log-likelihood of a whole measurement vector is
