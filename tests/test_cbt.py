@@ -11,15 +11,17 @@ import numpy as np
 import pytest
 
 from vidtrack.errors import UsageError
-from vidtrack.filters.channels import (CBTFilter, CBTModel, ChannelBasis, ChannelBayesFilter, decode, decode_modes,
-                                       embedded_predict,
-                                       encode)
+from vidtrack.channels import (ChannelBasis, decode, decode_modes, embedded_predict, encode,
+                               random_walk_displacement)
+from vidtrack.filters.cbt import CBTFilter
+from vidtrack.filters.cbt_model import CBTModel
+from vidtrack.filters.channels import ChannelBayesFilter
 from vidtrack.filters.ekf import ExtendedKalmanFilter
 from vidtrack.filters.kalman import KalmanFilter, motion_model
 from vidtrack.filters.pdaf import pdaf_update
 from vidtrack.learn.baum_welch import (baum_welch, chain_counts, covariance_transition, embed_history,
                                        embedded_covariance, likelihoods, measurement_matrix)
-from vidtrack.measure.detections import score_map_peaks
+from vidtrack.measure.detections import DetectionMeasurer, score_map_peaks
 from vidtrack.recipes import build_tracker
 from vidtrack.types import Detections
 
@@ -181,7 +183,7 @@ def test_cbt_tracks_a_synthetic_target_from_detections(moving_target):
     frames, boxes = moving_target
     tracker = build_tracker("cbt", seed=0)
     tracker.initialize(frames[0], boxes[0])
-    for frame, box in zip(frames[1:], boxes[1:]):
+    for frame in frames[1:]:
         state = tracker.step(frame)
         assert 0.0 <= state.confidence <= 1.0
         det = state.stages["detections"]
@@ -190,6 +192,36 @@ def test_cbt_tracks_a_synthetic_target_from_detections(moving_target):
     assert np.linalg.norm(state.box.center - boxes[-1].center) < 4.0
     assert state.status == "tracking" and state.confidence > 0.5
     assert np.any(tracker.filter.inner.counts_[0] > 0)  # learned online from its own estimates (inside MeasuredSizeFilter)
+
+
+def test_cbt_configuration_reaches_the_measurer_and_the_filter():
+    default = build_tracker("cbt", seed=0)
+    assert default.filter.inner == CBTFilter()  # the recipe's defaults are the filter's
+    assert default.measurer == DetectionMeasurer()
+    tracker = build_tracker("cbt", settings={"detections.min_score": "0.55", "order": "3", "product": "sqrt",
+                                             "detector": "ncc", "detections.margin": "1.5"}, relearn_every=4)
+    inner = tracker.filter.inner
+    assert (inner.order, inner.product, inner.relearn_every) == (3, "sqrt", 4)
+    assert tracker.measurer == DetectionMeasurer(detector="ncc", margin=1.5, min_score=0.55)
+    with pytest.raises(UsageError, match="cf, ncc"):
+        build_tracker("cbt", detector="face")
+    with pytest.raises(UsageError, match="detections.min_score"):
+        build_tracker("cbt", settings={"min_score": "0.5"})  # a detections field, not a top-level one
+
+
+def test_cbt_takes_the_order_of_its_model_file_unless_told(tmp_path, moving_target):
+    frames, boxes = moving_target
+    basis = ChannelBasis(-0.6, 0.6, 15)
+    path = tmp_path / "order3.npz"
+    D = random_walk_displacement(basis, 0.12, 3)
+    CBTModel(basis, D, D).save(path)
+    tracker = build_tracker("cbt", model=str(path))
+    assert tracker.filter.inner.order == 3 and tracker.filter.inner.model.order == 3
+    tracker.initialize(frames[0], boxes[0])
+    assert tracker.filter.inner.G_[0].shape == (tracker.filter.inner.bases_[0].n,) * 4
+    contradicting = build_tracker("cbt", model=str(path), order=2)
+    with pytest.raises(UsageError, match="order 3"):
+        contradicting.initialize(frames[0], boxes[0])
 
 
 def test_cbt_filter_without_detections_is_lost_and_coasts(moving_target):

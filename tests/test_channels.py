@@ -1,16 +1,16 @@
-"""cos² channel encoding/decoding and channel Bayesian tracking steps (vidtrack.filters.channels)."""
+"""cos² channel encoding/decoding and channel Bayesian tracking steps (vidtrack.channels, vidtrack.filters.channels)."""
 
 from __future__ import annotations
 
 import numpy as np
 import pytest
 
-from vidtrack.filters.channels import (
+from vidtrack.channels import (
     ChannelBasis, cbt_update, channel_product, cos2_kernel, decode, decode_modes, decode_nd, decode_nd_modes,
     diagonal_history, embedded_matrix, embedded_predict, encode, encode_density, encode_nd, encode_samples,
-    mean_field_update, normalized, position_conditional, product_likelihood, random_walk_displacement,
-    shift_matrix,
+    normalized, position_conditional, random_walk_displacement, shift_matrix,
 )
+from vidtrack.filters.channels import mean_field_update, product_likelihood
 
 
 def test_kernel_is_a_partition_of_unity_with_three_active_channels():

@@ -38,7 +38,7 @@ def test_kill_9_keeps_boxes_log_video_and_recording(tmp_path):
     video_frames = count_frames(out["video.mp4"])   # PyAV decodes the killed run's video
     assert 0 <= len(boxes) - video_frames <= FLUSH + 1, (len(boxes), video_frames)
 
-    from vidtrack.sinks.rerun import read_recording
+    from rerun_reader import read_recording
 
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")             # "no footer": expected after kill -9

@@ -4,7 +4,7 @@ import argparse
 
 import numpy as np
 
-from vidtrack.experiments import svk_tables
+from vidtrack.experiments import svk_imm, svk_tables
 from vidtrack.filters.imm import IMMEstimator, MixedOrderIMM, mixed_order_mix, uniform_transition_matrix
 from vidtrack.filters.kalman import KalmanFilter, measured_axis_model
 
@@ -84,9 +84,9 @@ def _interval_rmse(est, truth):
 
 def test_q_readings_of_the_imm_models():
     dt, q, r = 0.5, 1e-2, 1.0
-    common = svk_tables.imm(("dr", "cv", "ca"), dt=dt, q=q, r=r, unmodelled_q="q")
+    common = svk_imm.imm(("dr", "cv", "ca"), dt=dt, q=q, r=r, unmodelled_q="q")
     assert all(np.allclose(f.Q, q * np.eye(3)) for f in common.filters)  # Q = q I on the common state
-    white = svk_tables.imm(("dr", "cv", "ca"), dt=dt, q=q, r=r, unmodelled_q=1.0, q_form="white-noise")
+    white = svk_imm.imm(("dr", "cv", "ca"), dt=dt, q=q, r=r, unmodelled_q=1.0, q_form="white-noise")
     from vidtrack.filters.kalman import axis_process_noise
 
     expected = axis_process_noise("cv", dt, q, 3)
@@ -99,7 +99,7 @@ def test_a_drift_model_without_the_velocity_makes_the_imm_cv_its_kalman_dr():
     p, v = svk_tables.nonlinear_motion()
     r = 100.0
     z = np.stack([p, v], axis=1) + np.random.default_rng(3).normal(0.0, 10.0, size=(len(p), 2))
-    filt = svk_tables.imm(("dr", "cv"), dt=0.01, q=1e-2 * r, r=r, unmodelled_q=1.0, formulation="native-zero",
+    filt = svk_imm.imm(("dr", "cv"), dt=0.01, q=1e-2 * r, r=r, unmodelled_q=1.0, formulation="native-zero",
                           pad_var=1.0, dr_velocity=False)
     est = svk_tables.run_filter(filt, z, r)
     dr = svk_tables.run_filter(svk_tables.kalman("dr", dt=0.01, q=1e-2 * r, r=r), z, r)
@@ -119,7 +119,7 @@ def test_padding_variance_trades_the_ca_interval_against_the_velocity_jump():
     for r in (100.0, 1000.0):
         z = np.stack([p, v], axis=1) + rng.normal(0.0, np.sqrt(r), size=(len(p), 2))
         for var in (0.01, 1.0):
-            filt = svk_tables.imm(("dr", "cv", "ca"), dt=0.5, q=1e-4 * r, r=r, unmodelled_q=1.0,
+            filt = svk_imm.imm(("dr", "cv", "ca"), dt=0.5, q=1e-4 * r, r=r, unmodelled_q=1.0,
                                   formulation="native-zero", pad_var=var)
             out[r, var] = _interval_rmse(svk_tables.run_filter(filt, z, r), p)
     (ca_small, _, cv_small), _ = out[1000.0, 0.01]
@@ -137,7 +137,7 @@ def test_carried_derivatives_and_underflow_leave_the_imm_cv_at_its_uniform_prior
     z = np.stack([p, v], axis=1) + np.random.default_rng(1).normal(0.0, 10.0, size=(len(p), 2))
     out = {}
     for likelihood in ("log", "float64"):
-        filt = svk_tables.imm(("dr", "cv"), dt=0.01, q=1e-2 * r, r=r, unmodelled_q=0.0, carry=True,
+        filt = svk_imm.imm(("dr", "cv"), dt=0.01, q=1e-2 * r, r=r, unmodelled_q=0.0, carry=True,
                               likelihood=likelihood)
         assert np.array_equal(filt.filters[0].F, np.eye(2))
         filt.initialize(np.array(z[0]), r * np.eye(2))

@@ -67,8 +67,10 @@ def test_imm_with_identical_models_equals_kalman():
     kf.initialize(np.zeros(2), np.eye(2))
     imm.initialize(np.zeros(2), np.eye(2))
     for z in [1.0, 2.5, 2.9, 4.2]:
-        kf.predict(); kf.update(np.array([z]))
-        imm.predict(); imm.update(np.array([z]))
+        kf.predict()
+        kf.update(np.array([z]))
+        imm.predict()
+        imm.update(np.array([z]))
     assert np.allclose(imm.x_, kf.x_) and np.allclose(imm.P_, kf.P_)
     assert np.allclose(imm.mu_, [0.5, 0.5])
 

@@ -54,10 +54,10 @@ def test_true_paths_move_at_most_one_per_step():
     assert np.all(z[:, 0] == 0) and np.all(np.abs(np.diff(z, axis=1)) <= 1.0 + 1e-12)
 
 
-def test_seed_like_path_moves_then_rests_with_the_rms_the_seeds_blind_pf_implies():
-    z = nh_1d.seed_like_path(200)
+def test_paper_path_moves_then_rests_with_the_rms_the_papers_blind_pf_implies():
+    z = nh_1d.paper_path(200)
     assert z[0] == 0 and np.all(np.diff(z[:100]) == 1) and np.all(z[100:] == 100)
-    assert np.sqrt(np.mean(z ** 2)) == pytest.approx(81.7, abs=1.0)   # the seed's PF rows: 81.70
+    assert np.sqrt(np.mean(z ** 2)) == pytest.approx(81.7, abs=1.0)   # the paper's PF rows: 81.70
 
 
 def _args(**kw):
@@ -79,14 +79,14 @@ def test_run_reproduces_the_qualitative_result_on_few_runs():
     assert "Low Noise" in table and "0.20" in table
 
 
-def test_seeds_float64_pf_goes_blind_with_outliers_and_the_log_pf_does_not():
+def test_papers_float64_pf_goes_blind_with_outliers_and_the_log_pf_does_not():
     result = nh_1d.run(_args(rhos="0,0.05", steps=200), lambda it, **kw: it)
     rows = {row["rho"]: row for row in result["rows"]}
-    path_rms = np.sqrt(np.mean(nh_1d.seed_like_path(200) ** 2))
+    path_rms = np.sqrt(np.mean(nh_1d.paper_path(200) ** 2))
     # rho = 0: both PFs follow the target like the exact filter does
     assert rows[0.0]["PF"]["mean"] < 2.0 and rows[0.0]["PF-log"]["mean"] < 2.0
     # rho = 0.05: every particle's float64 likelihood underflows, the PF stays
-    # near z_1 = 0 and its RMSE is the path's RMS (the seed's 81.70 rows)
+    # near z_1 = 0 and its RMSE is the path's RMS (the paper's 81.70 rows)
     assert rows[0.05]["PF"]["mean"] == pytest.approx(path_rms, abs=4.0)
     assert rows[0.05]["PF"]["mean"] > 5 * rows[0.05]["Bayes"]["mean"]
     assert rows[0.05]["PF-log"]["mean"] < rows[0.05]["Bayes"]["mean"] + 2.0
@@ -96,8 +96,8 @@ def test_random_true_paths_differ_between_runs():
     one = nh_1d.simulate(1.0, 0.0, 3, [0, 0], T=50, keep_paths=3)
     truths = np.array(one["paths"]["truth"])
     assert not np.allclose(truths[0], truths[1])
-    shared = nh_1d.simulate(1.0, 0.0, 3, [0, 0], T=50, keep_paths=3, true_path=nh_1d.seed_like_path(50))
-    assert np.allclose(np.array(shared["paths"]["truth"]), nh_1d.seed_like_path(50))
+    shared = nh_1d.simulate(1.0, 0.0, 3, [0, 0], T=50, keep_paths=3, true_path=nh_1d.paper_path(50))
+    assert np.allclose(np.array(shared["paths"]["truth"]), nh_1d.paper_path(50))
 
 
 def test_bad_arguments_raise_usage_errors():

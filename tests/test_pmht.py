@@ -31,7 +31,10 @@ def test_rts_smoother_ends_at_the_kalman_filter_and_smooths_better():
         filtered.append(kf.x_.copy())
     smoothed, Ps = rts_smoother(x0, P0, F, Q, H, zs, [R] * len(zs))
     assert np.allclose(smoothed[-1], filtered[-1])  # the last frame: smoothing = filtering
-    err = lambda est: np.sqrt(np.mean(np.sum((est @ H.T - xs @ H.T) ** 2, axis=1)))
+
+    def err(est):
+        return np.sqrt(np.mean(np.sum((est @ H.T - xs @ H.T) ** 2, axis=1)))
+
     assert err(smoothed) < err(np.array(filtered))
     assert np.all(np.linalg.eigvalsh(Ps[0]) > 0)
 

@@ -8,7 +8,7 @@ import pytest
 from vidtrack.cli import main
 from vidtrack.experiments import cbt_detections
 from vidtrack.experiments.paper import cell, comparison, relative_difference
-from vidtrack.filters.channels import ChannelBasis
+from vidtrack.channels import ChannelBasis
 from vidtrack.learn.baum_welch import baum_welch, chain_counts
 
 

@@ -1,7 +1,7 @@
 """The Rerun sink: recordings are complete, hold the documented entity paths and every frame.
 
 Recordings are read back two independent ways: the installed ``rerun`` CLI
-(``rerun rrd verify`` / ``rerun rrd stats``) and :func:`vidtrack.sinks.rerun.read_recording`
+(``rerun rrd verify`` / ``rerun rrd stats``) and :func:`rerun_reader.read_recording`
 (per-entity frame indices).
 """
 
@@ -21,10 +21,12 @@ pytest.importorskip("rerun")
 from vidtrack.cli import main as cli_main
 from vidtrack.errors import OutputError, UsageError
 from vidtrack.run import run_tracker
-from vidtrack.sinks.rerun import (RerunSink, colormap_lut, display_image, float_to_uint8, labels_for_segmentation,
-                                  nearest_resize, point_display, read_recording, region_transform,
-                                  stage_kind)
+from vidtrack.sinks.rerun import RerunSink
+from vidtrack.sinks.stage_images import (colormap_lut, display_image, float_to_uint8, labels_for_segmentation,
+                                         nearest_resize, point_display, region_transform, stage_kind)
 from vidtrack.types import Box, Frame, TrackState
+
+from rerun_reader import read_recording  # noqa: E402  (tests/: importable once rerun is)
 
 SEQUENCES = Path(__file__).resolve().parents[2] / "shared/data/sequences"
 RERUN_CLI = Path(sys.executable).parent / "rerun"
@@ -274,7 +276,7 @@ def test_size_budget_on_a_real_320x240_sequence(tmp_path):
     assert out.stat().st_size / n < 60 * 1024
 
 
-#: Entities each paper filter must show (issue 8), beyond those every filter shows.
+#: Entities each paper filter must show (its own stages and scalars), beyond those every filter shows.
 FILTER_ENTITIES = {
     "mil": {"stages/superpixels", "stages/svm_scores", "stages/inliers", "filter/inlier_count",
             "filter/svm_margin"},

@@ -145,7 +145,7 @@ def test_measured_axis_model_embeds_with_unmodelled_variance():
     assert H.shape == (2, 1) and R.shape == (2, 2)
 
 
-def test_svk_tables_one_run_matches_the_seed():
+def test_svk_tables_one_run_matches_the_paper():
     from vidtrack.experiments import svk_tables
 
     parser = argparse.ArgumentParser()

@@ -1,9 +1,10 @@
 """Carlin's experiment: Channel-Based Tracking vs EKF, grid filter and SIR particle filter.
 
-The table of "Learning Object Tracking in Image Sequences" / "Channel-Based
-Tracking" (Felsberg & Larsson), comparing CBT with the algorithms of
-Arulampalam et al.'s particle-filter tutorial on the univariate
-nonstationary growth model::
+The table of Felsberg & Larsson, "Learning Object Tracking in Image
+Sequences" / "Channel-Based Tracking", comparing CBT with the algorithms of
+Arulampalam et al.'s particle-filter tutorial ("A Tutorial on Particle
+Filters for Online Nonlinear/Non-Gaussian Bayesian Tracking") on the
+univariate nonstationary growth model::
 
     x_k = x_{k-1}/2 + 25 x_{k-1} / (1 + x_{k-1}^2) + 8 cos(1.2 k) + v_{k-1},  var(v) = 10
     z_k = x_k^2 / 20 + n_k,                                                 var(n) = 1
@@ -21,34 +22,22 @@ Comparators with the true model, sharing vidtrack's filter code: the EKF
 points (:mod:`vidtrack.filters.grid_bayes`) and the SIR particle filter with
 50 particles, resampled every step (:mod:`vidtrack.filters.particle`).
 
-An extra row refines the learned model by Baum-Welch (eqs. 17-18) from the
-training observations alone (no states), starting from the covariance
-estimates, as the seed does for data without ground truth.  Baum-Welch does
-not improve on the covariance estimate here (issue 14): that estimate is
-already learned from the true states, while Baum-Welch maximises the
-likelihood of the observations ``x^2 / 20``, which do not tell ``x`` from
-``-x`` but through the dynamics.  Its training log-likelihood rises every
-iteration, yet the test RMSE does not fall.  Paired difference of the RMSE
-(Baum-Welch minus covariance estimate, 4 iterations, 300 test runs; seeds
-0 / 1 / 2 / 3, seed 0 with the default 100 runs):
+An extra row, ``CBT+BW``, refines the learned model by Baum-Welch (eqs.
+17-19, :func:`vidtrack.learn.baum_welch.baum_welch`) from the training
+observations alone (no states), starting from the covariance estimates, as
+the paper does for data without ground truth.  By default only ``F`` is
+re-estimated, with the covariance estimate as a Dirichlet prior of weight
+:data:`BW_PRIOR` per history column (MAP-EM); ``--bw-learn-h --bw-prior 0``
+re-estimates ``F`` and ``h`` by maximum likelihood as the paper writes it,
+``--bw-product sqrt`` uses square-root products.  The claim checked is that
+the refined model is not worse than the covariance estimate (the paired
+difference of the RMSE at most two standard errors).
 
-* as the seed writes it, ``F`` and ``h`` re-estimated (eqs. 18-19, plain
-  products, ``--bw-learn-h --bw-prior 0``): +0.108 / +0.070 / +0.193 /
-  +0.103 (s.e. 0.04-0.055), worse on every seed; with square-root products
-  (``--bw-product sqrt``) it converges in four iterations (largest change of
-  ``F`` 0.055, 0.011, 0.002, 0.000) but to a far blunter model (RMSE 10.26);
-* ``F`` only, measurement matrix kept (``--bw-prior 0``): -0.025 / -0.023 /
-  +0.096 / +0.062;
-* ``F`` only with the covariance estimate as a Dirichlet prior of weight 10
-  (MAP-EM, the default): -0.043 / -0.030 / +0.054 / +0.020 (s.e. 0.035-0.05):
-  level with the covariance estimate, neither better nor significantly
-  worse.  The claim checked is that weaker one (not worse by more than two
-  standard errors of the paired difference).
-
-Setup choices (the seed does not state them): ``T = 50`` steps,
-``x_0 = 0.1`` known to every method (the filters' prior is ``N(0.1, 2)``),
-the grid on ``[-30, 30]``, the CBT channel ranges spanning the 1st-99th
-percentiles of the training data, RMSE per run over ``k = 1..T`` averaged over the runs.
+Setup (where the paper is silent): ``T = 50`` steps, ``x_0 = 0.1`` known to
+every method (the filters' prior is ``N(0.1, 2)``), the grid on ``[-30, 30]``,
+the CBT channel ranges spanning the 1st-99th percentiles of the training
+data, RMSE per run over ``k = 1..T`` averaged over the runs.  How close the
+table comes is in ``docs/reproduction.md`` (section "Channel-Based Tracking").
 """
 
 from __future__ import annotations
@@ -57,16 +46,18 @@ import time
 
 import numpy as np
 
-from ..filters.channels import ChannelBasis, ChannelBayesFilter, decode, encode, history_prior, shift_matrix
+from ..channels import ChannelBasis, decode, encode, history_prior, shift_matrix
+from ..filters.channels import ChannelBayesFilter
 from ..filters.ekf import ExtendedKalmanFilter
 from ..filters.grid_bayes import GridBayesFilter, gaussian_transition
 from ..filters.particle import sir_step, systematic_resample
 from ..learn.baum_welch import baum_welch, embedded_covariance, measurement_matrix
+from .figures import carlin_trajectories
 from .paper import LEGEND, cell, claim, comparison
 
 DESCRIPTION = "Carlin's experiment (CBT paper table): RMSE of CBT vs EKF, grid filter, SIR PF"
 
-#: Baum-Welch: Dirichlet prior weight of the covariance estimate, per history column (see the module docstring).
+#: Baum-Welch: Dirichlet prior weight of the covariance estimate, per history column (MAP-EM; 0: eq. 18's ML).
 BW_PRIOR = 10.0
 Q_VAR = 10.0
 R_VAR = 1.0
@@ -198,8 +189,12 @@ def run_sir(z: np.ndarray, rng: np.random.Generator, particles: int = 50) -> np.
     w = np.full(particles, 1.0 / particles)
     out = np.empty(len(z) - 1)
     for k in range(1, len(z)):
-        propagate = lambda x, r, k=k: growth(x, k) + r.normal(0.0, np.sqrt(Q_VAR), size=x.shape)
-        loglik = lambda x, k=k: -0.5 * (z[k] - observe(x)) ** 2 / R_VAR
+        def propagate(x, r, k=k):  # x_k = f_k(x_{k-1}) + v
+            return growth(x, k) + r.normal(0.0, np.sqrt(Q_VAR), size=x.shape)
+
+        def loglik(x, k=k):  # log p(z_k | x_k), up to a constant
+            return -0.5 * (z[k] - observe(x)) ** 2 / R_VAR
+
         p, w, _ = sir_step(p, w, propagate, loglik, rng, resample_below=0.0)
         out[k - 1] = float(w @ p)  # estimate before resampling
         idx = systematic_resample(w, rng)  # SIR: resample every step
@@ -249,9 +244,9 @@ def run(args, progress) -> dict:
     timing = {name: 0.0 for name in errors}
     for _ in progress(range(runs), total=runs, desc="cbt-carlin"):
         x, z = simulate(rng, args.steps)
-        for name, fn in (("CBT", lambda: run_cbt(z, G, H, bx, bz)), ("EKF", lambda: run_ekf(z)),
-                         ("Grid", lambda: run_grid(z)), ("SIR PF", lambda: run_sir(z, rng)),
-                         ("CBT+BW", lambda: run_cbt(z, bw.G, bw.H, bx, bz))):
+        for name, fn in (("CBT", lambda z=z: run_cbt(z, G, H, bx, bz)), ("EKF", lambda z=z: run_ekf(z)),
+                         ("Grid", lambda z=z: run_grid(z)), ("SIR PF", lambda z=z: run_sir(z, rng)),
+                         ("CBT+BW", lambda z=z: run_cbt(z, bw.G, bw.H, bx, bz))):
             if name not in errors:
                 continue
             t0 = time.perf_counter()
@@ -280,8 +275,6 @@ def run(args, progress) -> dict:
     result["vs_paper"] = [comparison("Carlin", name, "RMSE", result["rmse"][name], PAPER[name]) for name in PAPER]
     result["claims"] = claims(result)
     if getattr(args, "figure_dir", None):
-        from .figures import carlin_trajectories
-
         fig_rng = np.random.default_rng([args.seed, 7])  # its own stream: the table does not change
         x, z = simulate(fig_rng, args.steps)
         estimates = {"CBT": run_cbt(z, G, H, bx, bz), "EKF": run_ekf(z), "Grid": run_grid(z),
@@ -293,7 +286,7 @@ def run(args, progress) -> dict:
 
 
 def claims(result: dict) -> list[dict]:
-    """The seed's claims on Carlin's experiment, checked on ``result``."""
+    """The paper's claims on Carlin's experiment, checked on ``result``."""
     r = result["rmse"]
     out = [claim("CBT has a lower RMSE than the EKF, the grid filter and the SIR particle filter (paper: 5.43 vs "
                  "23.19 / 6.09 / 5.54)", all(r["CBT"] < r[n] for n in ("EKF", "Grid", "SIR PF")),

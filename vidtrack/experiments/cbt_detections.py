@@ -1,14 +1,14 @@
-"""Tracking from unassociated detections: CBT vs PDAF vs the raw detector (the seed's RC-car table).
+"""Tracking from unassociated detections: CBT vs PMHT vs PDAF vs the raw detector (the paper's RC-car table).
 
-The RC-car sequences of "Learning Object Tracking in Image Sequences" /
-"Channel-Based Tracking" (Felsberg & Larsson) are not available, so this
+The RC-car sequences of Felsberg & Larsson, "Learning Object Tracking in
+Image Sequences" / "Channel-Based Tracking", are not available, so this
 experiment builds their equivalent: two or more objects move smoothly in a
 320x240 image; every frame a detector reports each object with probability
 ``p_detect`` (drop-outs), displaced by Gaussian noise and now and then by a
 gross displacement, plus Poisson clutter uniform over the image; nothing
 says which detection belongs to which object.
 
-CBT (20 channels per axis, order 3, as in the seed) learns its transition
+CBT (20 channels per axis, order 3, as in the paper) learns its transition
 from one simulated sequence *without associations* (section 3.4): every
 chain of detections from consecutive frames whose links are shorter than
 ``GATE`` px adds the outer product of its channel vectors to the
@@ -22,55 +22,38 @@ identity (detections live in the state space).  Rows:
   :func:`learn_associated`);
 * ``CBT Baum-Welch`` -- ``CBT`` refined by ``--iterations`` Baum-Welch
   iterations (eqs. 17-18) on the frames' per-axis set vectors, the
-  correspondence-free learning the seed claims converges in about four
-  iterations to a model as good as the associated one;
+  correspondence-free learning the paper claims converges in about four
+  iterations to a model as good as the associated one.  Every product of
+  channel vectors is the square-root product (``--bw-product sqrt``, the
+  paper's product for channel vectors, section 3.3) and the starting
+  estimate is a Dirichlet prior of weight ``--bw-prior`` pseudo-frames per
+  history column (MAP-EM; 0 is eq. 18's maximum likelihood, which
+  re-estimates a history column the posterior hardly visits from next to
+  no data: see ``history_mass`` of
+  :class:`~vidtrack.learn.baum_welch.BaumWelchResult`);
 * ``PMHT`` (:mod:`vidtrack.filters.pmht`) and ``PDAF``
   (:mod:`vidtrack.filters.pdaf`) with the same constant-velocity Kalman
   model; ``Detector`` -- the highest-scoring detection of each frame.
-
-Why plain maximum-likelihood Baum-Welch made CBT worse (issue 14; 5 runs,
-seed 0, RMSE(inf) against 17.59 for CBT associated): with plain products and
-the ML re-estimate (eq. 18) it gave 25.73.  Two causes, each measured:
-(1) eq. 18 re-estimates each history column from the
-expected transitions out of that history alone (``history_mass`` of
-:class:`~vidtrack.learn.baum_welch.BaumWelchResult`); with 20 channels and
-order 3 there are 8000 histories, and the posterior of a training sequence
-leaves many the chain counts had learned nearly empty (first iteration, x
-axis, plain products: 20 of the 141 histories with chain mass above 0.01 get
-less than 0.01), so their columns are re-estimated from next to nothing.
-Keeping the starting estimate as a Dirichlet prior (``--bw-prior``, pseudo
-frames per column; MAP-EM) fixes that: plain products 22.1 / 21.6 / 21.0 for
-prior 0.01 / 0.1 / 1.  (2) With plain products the per-axis posterior on a
-set vector (both objects plus clutter) collapses on one detection per axis,
-and learns the jumps between them; square-root products, which the seed
-prescribes for channel vectors (section 3.3), keep the modes: 21.29 without
-prior, 19.96 / 18.00 / 17.57 with prior 0.01 / 0.1 / 1.  The defaults (square
-root, prior 0.1) reproduce the claim while Baum-Welch still moves the model
-(its change per iteration decays 0.043, 0.021, 0.011, 0.007: converged in
-about four iterations).
-
-Across seeds (``--runs 5``, RMSE(inf), CBT associated / CBT Baum-Welch /
-PMHT / PDAF): seed 0 17.59 / 18.00 / 37.72 / 27.63; seed 1 25.70 / 26.02 /
-24.57 / 20.94; seed 2 16.62 / 17.33 / 71.40 / 319.13 (the PDAF leaves the
-image once).  Baum-Welch stays within 1-5 % of the associated model on every
-seed; CBT below PDAF and PMHT holds on seeds 0 and 2, not on seed 1, where
-CBT follows the other object for a while: RMSE(inf) over five runs is
-dominated by such losses of track, whichever tracker has them.
 
 CBT is evaluated on another sequence, tracking object 0 (the "car in
 front", whose detections score a little higher) from its true first
 position; the estimate is the decoded strongest mode of the 2-D posterior.
 The PDAF starts at the same position; the PMHT has one track per object,
-started at the objects' true first positions, and (as the seed scores its
+started at the objects' true first positions, and (as the paper scores its
 multi-target PMHT) each frame counts the track closest to object 0.  Frames
-without detections do not count for the detector, as in the seed.  RMSE of
-the position error with the seed's outlier caps: each frame's error is
+without detections do not count for the detector, as in the paper.  RMSE of
+the position error with the paper's outlier caps: each frame's error is
 replaced by the cap when larger (inf, 20, 5 px).
 
 A multi-object run reports the modes too: a CBT started from the
 first-frame empirical prior (all detections), updated with square-root
-products, decodes every mode holding at least ``MULTI_THRESHOLD`` of the mass; ``modes`` is the mean number per frame and ``rmse_all_objects``
-the error of each object to its nearest mode.
+products, decodes every mode holding at least ``MULTI_THRESHOLD`` of the
+mass; ``modes`` is the mean number per frame and ``rmse_all_objects`` the
+error of each object to its nearest mode.
+
+How close the table comes, and why Baum-Welch needs the square-root
+products and the prior here, is in ``docs/reproduction.md`` (section
+"Channel-Based Tracking").
 """
 
 from __future__ import annotations
@@ -80,7 +63,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..filters.channels import ChannelBasis, PlanarCBT, conditional_from_counts, encode
+from ..channels import ChannelBasis, conditional_from_counts, encode
+from ..filters.channels import PlanarCBT
 from ..filters.kalman import motion_model
 from ..filters.pdaf import PDAF
 from ..filters.pmht import PMHT
@@ -260,7 +244,7 @@ def run_pmht(tracks: np.ndarray, dets: list[np.ndarray], sc: Scenario, window: i
              iterations: int = PMHT_ITERATIONS) -> np.ndarray:
     """PMHT with one track per object, started at the objects' true first positions.
 
-    Same constant-velocity Kalman model as the PDAF.  As the seed does for
+    Same constant-velocity Kalman model as the PDAF.  As the paper does for
     its (multi-target) PMHT, each frame scores the track closest to object 0.
     The estimate of frame ``k`` is the end of the batch ending at ``k``
     (causal, like CBT and PDAF).
@@ -387,12 +371,12 @@ def cap_key(cap: float) -> str:
 
 PAPER = {"RC1": {"CBT": (7.3, 6.6, 3.9), "PMHT": (13.1, 8.9, 3.2), "PDAF": (18.4, 9.1, 4.0), "Detector": (40.43, 10.54, 4.17)},
          "RC2": {"CBT": (6.7, 6.5, 3.9), "PMHT": (15.6, 7.1, 3.5), "PDAF": (23.3, 8.5, 3.9), "Detector": (42.72, 10.58, 4.23)}}
-#: The seed's CBT row is its correspondence-free model (learned from unassociated detections).
+#: The paper's CBT row is its correspondence-free model (learned from unassociated detections).
 PAPER_ROW = {"CBT Baum-Welch": "CBT"}
 
 
 def claims(result: dict) -> list[dict]:
-    """The seed's claims on this table, checked on ``result`` (RMSE(inf))."""
+    """The paper's claims on this table, checked on ``result`` (RMSE(inf))."""
     r = {name: v["inf"] for name, v in result["rmse"].items()}
     out = []
     if "CBT Baum-Welch" in r:
@@ -423,7 +407,7 @@ def format_table(result: dict) -> str:
              f"{s['gate']:g} px); CBT associated: the same estimate from each object's own chains (known associations); "
              f"CBT Baum-Welch: CBT refined by {s['iterations']} Baum-Welch iterations ({s['bw_product']} products, "
              f"prior weight {s['bw_prior']:g}); PMHT: window {s['pmht_window']}, {s['pmht_iterations']} EM iterations",
-             f"{LEGEND}; paper = the seed's RC1 table (its CBT is the correspondence-free one)",
+             f"{LEGEND}; paper = the paper's RC1 table (its CBT is the correspondence-free one)",
              f"{'method':<16}" + "".join(f"{'(' + c + ')':>22}" for c in CAP_KEYS)]
     for name in ROWS:
         if name not in result["rmse"]:

@@ -1,10 +1,11 @@
 """PNG figures of the reproductions: truth vs estimates, like the papers' figures.
 
-Only this module (and :mod:`vidtrack.experiments.nh_1d`'s ``--plot``)
-imports matplotlib, with the non-interactive ``Agg`` backend.  Each function
-runs the experiment's own filters on one extra realisation drawn from its own
-random stream (so the tables do not change when figures are asked for) and
-returns the paths it wrote.
+The only module of the experiments that imports matplotlib (with the
+non-interactive ``Agg`` backend, on first use).  Each function draws what an
+experiment computed -- the experiments run their filters on extra
+realisations from their own random streams, so the tables do not change when
+figures are asked for -- and returns the paths it wrote.  Nothing here runs
+a filter or imports an experiment.
 """
 
 from __future__ import annotations
@@ -23,22 +24,15 @@ def _pyplot():
     return plt
 
 
-def svk_trajectories(args, kind: str, truth: tuple[np.ndarray, np.ndarray], make_filters, out_dir) -> list[str]:
-    """Salti & Di Stefano's Fig. 4 (and Figs. 9-10 for the non-linear motion), at ``R = 100 I``.
+def svk_trajectories(p: np.ndarray, estimates: dict[str, np.ndarray], kind: str, r: float, out_dir) -> list[str]:
+    """Salti & Di Stefano's Fig. 4 (and Figs. 9-10 for the non-linear motion): truth ``p`` and the estimates.
 
     Top: SVK against the Kalman and IMM filters tuned for smoothness
     (``Q = 1e-4 R``); bottom: against those tuned for responsiveness
-    (``Q = 1e-2 R``).  Returns the PNG path.
+    (``Q = 1e-2 R``).  ``estimates`` maps the table's filter names to their
+    positions on one realisation at ``R = r I``.  Returns the PNG path.
     """
-    from .svk_tables import run_filter
-
     plt = _pyplot()
-    r = 100.0
-    p, v = truth
-    rng = np.random.default_rng([args.seed, 7])
-    z = np.stack([p, v], axis=1) + rng.normal(0.0, np.sqrt(r), size=(len(p), 2))
-    makers = make_filters(args, kind, r)
-    estimates = {name: run_filter(make(), z, r) for name, make in makers.items()}
     fig, axes = plt.subplots(2, 1, figsize=(11, 8), sharex=True)
     for ax, tuning in zip(axes, ("1e-4", "1e-2")):
         ax.plot(p, "k--", lw=2, label="truth")
@@ -49,7 +43,7 @@ def svk_trajectories(args, kind: str, truth: tuple[np.ndarray, np.ndarray], make
         span = p.max() - p.min()
         ax.set_ylim(p.min() - 0.1 * span, p.max() + 0.1 * span)
         ax.set_ylabel("position")
-        ax.set_title(f"{kind} motion, R = 100 I: SVK vs filters tuned Q = {tuning} R", fontsize=10)
+        ax.set_title(f"{kind} motion, R = {r:g} I: SVK vs filters tuned Q = {tuning} R", fontsize=10)
         ax.legend(fontsize=7, ncol=3)
     axes[-1].set_xlabel("sample")
     fig.tight_layout()
@@ -77,3 +71,28 @@ def carlin_trajectories(x: np.ndarray, estimates: dict[str, np.ndarray], out_dir
     fig.savefig(path, dpi=90)
     plt.close(fig)
     return [str(path)]
+
+
+def nh_paths(plotted: dict[float, dict], rho: float, path: str) -> str:
+    """Chaudhuri, Freund & Hsu's Figs. 2-3: true, NH and Bayes paths of five runs per noise level.
+
+    ``plotted`` maps ``sigma_o`` to the paths of :func:`vidtrack.experiments.nh_1d.simulate`
+    (``"truth"``, ``"NH"``, ``"Bayes"``: lists of per-run paths) at outlier fraction ``rho``.
+    Returns ``path``.
+    """
+    plt = _pyplot()
+    fig, axes = plt.subplots(len(plotted), 5, figsize=(16, 3.2 * len(plotted)), squeeze=False)
+    for row, (sigma_o, paths) in enumerate(sorted(plotted.items())):
+        for k in range(min(5, len(paths["truth"]))):
+            ax = axes[row, k]
+            ax.plot(paths["truth"][k], "k--", label="true")
+            ax.plot(paths["NH"][k], "b", label="NH")
+            ax.plot(paths["Bayes"][k], "r", label="Bayes")
+            ax.set_title(f"sigma_o={sigma_o:g}, rho={rho:g}, run {k + 1}", fontsize=9)
+            truth = np.asarray(paths["truth"][k])
+            ax.set_ylim(truth.min() - 120, truth.max() + 120)
+    axes[0, 0].legend(fontsize=8)
+    fig.tight_layout()
+    fig.savefig(path, dpi=90)
+    plt.close(fig)
+    return path

@@ -17,78 +17,37 @@ read the same measurements:
   with a Gaussian random walk ``sigma_d = 2``, the Gaussian likelihood
   ``M(g, t) ~ N(H(g, x), sigma_o^2)`` with the true ``sigma_o`` and the
   prior ``z_1 = 0``; estimate = posterior mean;
-* **PF** -- the particle filter as the seed ran it (it cites de Freitas'
+* **PF** -- the particle filter as the paper ran it (it cites de Freitas'
   2000 Matlab code): ``N = 100`` particles, the same model, resampled every
   step, each weighted by the float64 likelihood of the whole 1001-point
-  measurement, ``exp(-sum_g (M(g) - H(g, x))^2 / 2 sigma_o^2)``.  With
-  outliers that product underflows to 0 for every particle; the weights then
-  stay uniform and the PF goes blind.  This reproduces the seed's PF column:
-  good at ``rho = 0``, degraded at ``rho = 0.01``, and flat at
-  ``81.70 +- 1.74`` -- the RMS of its true path -- for ``rho >= 0.05``.
-  (The exponent is about 500 at ``rho = 0``, 1000 at ``rho = 0.01`` and
-  3000 at ``rho = 0.05``; float64 underflows below ``e^-745``.  De Freitas'
-  demos add ``1e-99`` to each weight, which here would blind the PF even at
-  ``rho = 0``, against the seed's 1.23, so the floor is left out);
+  measurement, ``exp(-sum_g (M(g) - H(g, x))^2 / 2 sigma_o^2)``.  The
+  exponent is about 500 at ``rho = 0``, 1000 at ``rho = 0.01`` and 3000 at
+  ``rho = 0.05``, and float64 underflows below ``e^-745``: with outliers the
+  likelihood of every particle is 0, the weights stay uniform and the PF
+  goes blind (:func:`float64_likelihood_as_log`).  De Freitas' demos add
+  ``1e-99`` to each weight; that floor is left out;
 * **PF-log** -- the same SIR filter
   (:func:`vidtrack.filters.particle.sir_step_batch`) with its weights
-  computed in logs, i.e. numerically sound.  It never goes blind.  At
-  ``sigma_o = 1`` it beats the exact Bayes filter at every ``rho > 0`` (its
-  100 particles stay near the estimate, where far-off outliers cannot pull
-  them); at ``sigma_o = 8`` it is worse than Bayes at every ``rho <= 0.2``, by
-  far once ``rho >= 0.05`` (100 particles lose the target in heavy noise;
-  at ``rho = 0.4`` both are lost about equally often).  So
-  the seed's conclusion that the PF degrades more than Bayes holds at high
-  noise, but its flat PF rows are a floating-point artefact, not a property
-  of particle filtering; both columns are printed so the two can be
-  compared.
-
-Measured (``vidtrack reproduce nh-1d --runs 100``, seed 0, 54 s) against the
-seed's Table 1, mean RMSE, ours / seed's:
-
-=========  ===========  ===========  ===========  ========
-sigma_o=1  NH           Bayes        PF           PF-log
-=========  ===========  ===========  ===========  ========
-rho 0      3.50 / 3.18  1.11 / 1.17  1.18 / 1.23  1.18
-rho 0.01   3.62 / 3.21  1.84 / 1.90  5.28 / 3.98  1.60
-rho 0.05   3.56 / 3.26  4.12 / 3.99  81.5 / 81.7  2.95
-rho 0.2    3.87 / 3.52  10.1 / 10.3  81.4 / 81.7  7.24
-=========  ===========  ===========  ===========  ========
-
-=========  ===========  ===========  ===========  ========
-sigma_o=8  NH           Bayes        PF           PF-log
-=========  ===========  ===========  ===========  ========
-rho 0      11.6 / 10.9  11.1 / 11.0  13.4 / 14.4  13.0
-rho 0.01   11.6 / 11.3  13.6 / 12.8  44.0 / 44.3  17.6
-rho 0.05   12.4 / 12.0  21.3 / 19.8  81.4 / 81.7  32.0
-rho 0.2    14.6 / 14.2  41.0 / 44.0  81.5 / 81.7  57.2
-rho 0.4    19.8 / 19.6  74.6 / --    81.4 / --    70.7
-=========  ===========  ===========  ===========  ========
-
-(the seed quotes NH's 19.6 at ``rho = 0.4`` in its text.)
+  computed in logs, i.e. numerically sound; it never goes blind.
 
 Per run the RMSE over the ``T = 200`` steps is computed; the table reports
 its mean and standard deviation over the runs.
 
-The true path (the paper does not give it; its Figures 2-3 are not in our
-copy).  The seed says the object "remains stationary or moves with velocity
-at most 1", that sigma_d was tuned on "the same true state sequence" with
-fresh noise, and its blind PF rows (``81.70 +- 1.74`` for every ``rho >=
-0.05`` at both noise levels) can only be the RMS of one fixed path about its
-start ``z_1 = 0`` with a tiny spread.  The default ``--true-path seed`` is the
-simplest path with those properties: speed 1 for the first ``T/2`` steps,
-then at rest (RMS 81.2 for ``T = 200``), the same in every run.
-``--true-path random`` draws a new path per run instead: segments of 20-60
-steps, each at rest or moving at a constant velocity uniform in
-``[-1, 1]`` (RMS about 20, so a blind filter scores about 20).
+The true path (``--true-path``): the paper does not give it.  ``seed``
+(the default) is one path for every run, speed 1 for the first ``T/2``
+steps, then at rest (RMS 81.5 for ``T = 200``); ``random`` draws a new
+path per run, segments of 20-60 steps, each at rest or moving at a constant
+velocity uniform in ``[-1, 1]``.  The trackers see the same noise in a run;
+the Gaussian log-likelihood of a whole measurement vector is
+``sum_{|g - x| <= W} (2 M(g) - 1) / (2 sigma_o^2)`` up to a constant; NH's
+continuous action states use the grid points inside ``[x - W, x + W]``.
+NH's initial actions are drawn from ``N(z_1, Sigma_*)`` by default
+(``--nh-init prior``: the knowledge of ``z_1 = 0`` that Bayes and the PFs
+are given); Algorithm 2's "randomly drawn from X" is ``--nh-init uniform``
+(uniform on ``[-500, 500]``).
 
-Other assumptions: the trackers see the same noise in a run; the Gaussian log-likelihood of a whole
-measurement vector is ``sum_{|g - x| <= W} (2 M(g) - 1) / (2 sigma_o^2)`` up
-to a constant; NH's continuous action states use the grid points inside
-``[x - W, x + W]``.  NH's initial actions are drawn from ``N(z_1, Sigma_*)``
-by default (``--nh-init prior``: the knowledge of ``z_1 = 0`` that Bayes and
-the PFs are given); Algorithm 2's "randomly drawn from X" is
-``--nh-init uniform`` (uniform on ``[-500, 500]``), which at ``sigma_o = 8``
-sometimes locks onto a noise clump in the first steps and never recovers.
+Why these readings, and how close the table comes, are in
+``docs/reproduction.md`` (section "NormalHedge").
 """
 
 from __future__ import annotations
@@ -103,6 +62,7 @@ from ..errors import UsageError
 from ..filters.grid_bayes import gaussian_transition, grid_predict, grid_update_log
 from ..filters.normalhedge import nh_tracking_step
 from ..filters.particle import sir_step_batch
+from .figures import nh_paths
 from .paper import claim, comparison, relative_difference
 
 DESCRIPTION = "NormalHedge vs Bayes vs PF on the 1-D pulse simulation (Chaudhuri et al. 2010, Table 1)"
@@ -133,8 +93,8 @@ def true_paths(n_runs: int, T: int, rng: np.random.Generator) -> np.ndarray:
     return np.clip(paths, -HALF_GRID + WIDTH, HALF_GRID - WIDTH)
 
 
-def seed_like_path(T: int) -> np.ndarray:
-    """``z_t = min(t, T/2)``: speed 1 for the first half, then at rest (``--true-path seed``)."""
+def paper_path(T: int) -> np.ndarray:
+    """``z_t = min(t, T/2)``: speed 1 for the first half, then at rest (``--true-path seed``, the default)."""
     return np.minimum(np.arange(T, dtype=float), T // 2)
 
 
@@ -228,7 +188,7 @@ def simulate(sigma_o: float, rho: float, n_runs: int, seed, *, T: int = 200, n_a
         q = clipped(m, sigma_o)
         ll_terms = gaussian_loglik_weights(m, sigma_o)
 
-        out = nh_tracking_step(nh_states, nh_regrets, nh_weights, lambda s: -window_sums(q, s[..., 0]),
+        out = nh_tracking_step(nh_states, nh_regrets, nh_weights, lambda s, q=q: -window_sums(q, s[..., 0]),
                                nh_rng, alpha=alpha, sigma_star=sigma_star)
         nh_states, nh_regrets, nh_weights = out["next_states"], out["regrets"], out["weights"]
         est["NH"][:, t] = out["estimate"][:, 0]
@@ -239,7 +199,7 @@ def simulate(sigma_o: float, rho: float, n_runs: int, seed, *, T: int = 200, n_a
             for r in range(n_runs):
                 posterior[:, r] = grid_update_log(posterior[:, r], loglik[:, r])
             particles["PF-log"], pf_weights["PF-log"], _ = sir_step_batch(
-                particles["PF-log"], pf_weights["PF-log"], propagate, lambda x: window_sums(ll_terms, x),
+                particles["PF-log"], pf_weights["PF-log"], propagate, lambda x, ll=ll_terms: window_sums(ll, x),
                 pf_rngs["PF-log"])
             particles["PF"], pf_weights["PF"], _ = sir_step_batch(
                 particles["PF"], pf_weights["PF"], propagate, float64_likelihood_as_log(m, ll_terms, sigma_o),
@@ -257,7 +217,7 @@ ALWAYS_RESAMPLE = 2.0  # sir_step_batch resamples when N_eff < this * N: always,
 
 
 def float64_likelihood_as_log(m: np.ndarray, ll_terms: np.ndarray, sigma_o: float):
-    """The seed's PF weights: ``exp(-sum_g (M(g) - H(g, x))^2 / 2 sigma_o^2)`` evaluated in float64.
+    """The paper's PF weights: ``exp(-sum_g (M(g) - H(g, x))^2 / 2 sigma_o^2)`` evaluated in float64.
 
     Returned as the log of that float64 number, so an underflowed likelihood
     is ``-inf``; when every particle underflows, :func:`sir_step_batch` keeps
@@ -296,8 +256,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--nh-init", choices=("prior", "uniform"), default="prior",
                         help="NH's initial actions: N(z_1, Sigma_*) (default) or uniform on [-500, 500]")
     parser.add_argument("--true-path", choices=("seed", "random"), default="seed",
-                        help="seed: speed 1 for T/2 steps then at rest, one path for every run (default); "
-                             "random: a new piecewise path per run")
+                        help="seed: speed 1 for T/2 steps then at rest, one path for every run, the path the "
+                             "paper's PF rows imply (default); random: a new piecewise path per run")
     parser.add_argument("--plot", metavar="FILE", help="plot true/NH/Bayes paths of 5 runs (like Figs 2-3)")
     parser.add_argument("--plot-rho", type=float, default=0.2, help="rho of the plotted runs (default 0.2)")
 
@@ -313,11 +273,10 @@ def run(args, progress) -> dict:
     if args.steps < 2:
         raise UsageError("--steps must be at least 2")
     plot_path = getattr(args, "plot", None)
-    plot_fig = None
     if plot_path:
         from ..sinks.base import open_text_output  # fail early on an unwritable path
         open_text_output(plot_path).close()
-    shared_path = seed_like_path(args.steps) if args.true_path == "seed" else None
+    shared_path = paper_path(args.steps) if args.true_path == "seed" else None
     conditions = [(s, r) for s in sigmas for r in rhos]
     rows, plotted = [], {}
     start = time.perf_counter()
@@ -336,40 +295,16 @@ def run(args, progress) -> dict:
            "nh_init": args.nh_init, "true_path": args.true_path,
            "seconds": round(time.perf_counter() - start, 1), "rows": rows}
     if plot_path:
-        plot_fig = _plot(plotted, args.plot_rho, plot_path)
-        out["plot"] = plot_fig
+        if not plotted:
+            raise UsageError(f"--plot-rho {args.plot_rho} is not one of --rhos")
+        out["plot"] = nh_paths(plotted, args.plot_rho, plot_path)
     out["vs_paper"] = paper_comparisons(out)
     out["claims"] = claims(out)
     return out
 
 
-def _plot(plotted: dict, rho: float, path: str) -> str:
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    if not plotted:
-        raise UsageError(f"--plot-rho {rho} is not one of --rhos")
-    fig, axes = plt.subplots(len(plotted), 5, figsize=(16, 3.2 * len(plotted)), squeeze=False)
-    for row, (sigma_o, paths) in enumerate(sorted(plotted.items())):
-        for k in range(min(5, len(paths["truth"]))):
-            ax = axes[row, k]
-            ax.plot(paths["truth"][k], "k--", label="true")
-            ax.plot(paths["NH"][k], "b", label="NH")
-            ax.plot(paths["Bayes"][k], "r", label="Bayes")
-            ax.set_title(f"sigma_o={sigma_o:g}, rho={rho:g}, run {k + 1}", fontsize=9)
-            truth = np.asarray(paths["truth"][k])
-            ax.set_ylim(truth.min() - 120, truth.max() + 120)
-    axes[0, 0].legend(fontsize=8)
-    fig.tight_layout()
-    fig.savefig(path, dpi=90)
-    plt.close(fig)
-    return path
-
-
 #: Table 1 of the paper (mean, sd of the RMSE over 100 simulations): PAPER[sigma_o][rho][filter].  Typed from the
-#: paper as the targets; the seed has no PF-log column and no rho = 0.4 row.
+#: paper as the targets; the paper has no PF-log column and no rho = 0.4 row.
 PAPER = {
     1.0: {0.00: {"NH": (3.18, 0.33), "Bayes": (1.17, 0.09), "PF": (1.23, 0.11)},
           0.01: {"NH": (3.21, 0.34), "Bayes": (1.90, 0.25), "PF": (3.98, 1.06)},
@@ -414,7 +349,9 @@ def claims(result: dict) -> list[dict]:
         cells = [(r, n, ref) for r, n, ref in cells if ref is not None]
         if cells:
             # standard error of the difference of two means: paper over 100 runs, vidtrack over result["runs"]
-            se = lambda r, n, ref: np.sqrt(ref[1] ** 2 / 100 + r[n]["sd"] ** 2 / max(result["runs"], 1))
+            def se(r, n, ref):
+                return np.sqrt(ref[1] ** 2 / 100 + r[n]["sd"] ** 2 / max(result["runs"], 1))
+
             outside = [f"{n} rho={r['rho']:g}" for r, n, ref in cells if abs(r[n]["mean"] - ref[0]) > 2 * se(r, n, ref)]
             out.append(claim(f"sigma_o = {sigma_o:g}: every NH/Bayes/PF mean within 2 standard errors of the paper's",
                              not outside, f"{len(cells) - len(outside)}/{len(cells)} cells"
@@ -426,7 +363,7 @@ def format_table(result: dict) -> str:
     lines = [f"Table 1 (Chaudhuri et al. 2010): RMSE over T={result['steps']} steps, "
              f"mean ± sd over {result['runs']} runs (seed {result['seed']}, NH init {result['nh_init']}, "
              f"{result['true_path']} true path, {result['seconds']} s)",
-             "PF: the seed's particle filter (float64 likelihood; blind once it underflows); "
+             "PF: the paper's particle filter (float64 likelihood; blind once it underflows); "
              "PF-log: the same filter in logs",
              "cells: vidtrack mean ± sd [paper mean, relative difference of the means]"]
     for sigma_o in sorted({row["sigma_o"] for row in result["rows"]}):

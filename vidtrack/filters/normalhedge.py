@@ -265,14 +265,14 @@ class NormalHedgeTracker:
     n_actions
         ``N``.
     alpha
-        Regret discount ``alpha`` (seed: 0.02).
+        Regret discount ``alpha`` (the paper's 1-D experiment: 0.02).
     sigma_star
         Re-sampling standard deviation per dimension (``sqrt`` of the
-        diagonal of ``Sigma_*``; seed: ``sqrt(400) = 20``).
+        diagonal of ``Sigma_*``; the paper's 1-D experiment: ``sqrt(400) = 20``).
     dynamics
         ``F``; identity when None.
     rng
-        Seed or Generator.
+        Random seed or Generator.
     prune_below
         See :func:`nh_tracking_step` (0: Algorithm 2 exactly).
     """

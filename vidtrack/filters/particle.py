@@ -122,7 +122,7 @@ class ParticleFilter:
     log_likelihood
         ``log_likelihood(particles, z) -> (N,)`` log p(z | x).
     rng
-        Seed or Generator.
+        Random seed or Generator.
     resample_below
         Resample when the effective sample size falls below this fraction of N.
     """

@@ -7,43 +7,24 @@ Online Learning-based Framework for Tracking" (UAI 2010): the same score map
 * :class:`NormalHedgeBoxFilter` -- the SMC NormalHedge tracker (Algorithms
   2-3, :mod:`vidtrack.filters.normalhedge`); actions are box centres and an
   action's loss is the clipped negative score of its box,
-  ``l_o(x) = -q(s(x))``, ``q(s) = min(hi, max(s, lo))`` (the seed's clipped
+  ``l_o(x) = -q(s(x))``, ``q(s) = min(hi, max(s, lo))`` (the paper's clipped
   loss, Section 5); the dynamics function is ``F(x) = x + v`` with ``v`` a
   running average of the estimate's displacement (``velocity_gain = 0``
-  gives the seed's identity ``F``);
+  gives the paper's identity ``F``);
 * :class:`ParticleBoxFilter` -- a SIR particle filter
   (:mod:`vidtrack.filters.particle`) with a Gaussian random walk and the
   likelihood ``p(s | x) ∝ exp(-(1 - s(x))^2 / 2 sigma_s^2)`` (the score of
   the true box is modelled as 1 plus Gaussian noise, the analogue of the
-  seed's generative model);
+  paper's generative model);
 * :class:`GridBayesBoxFilter` -- the exact grid Bayes filter
   (:mod:`vidtrack.filters.grid_bayes`) over a grid of centres that reaches
   ``extent`` box sizes around the estimate and moves with it, with the same
   random walk and likelihood; cells outside the detector's window are given
   the score ``outside_score`` (the detector's "background").
 
-The filters' own defaults (NH ``sigma_star`` 0.25 box sizes and ``alpha``
-0.4, PF ``sigma_d`` 0.2, grid Bayes ``sigma_d`` 0.1) were chosen on the NCC
-template map the way the seed chose its own (it tuned ``sigma_d`` for Bayes
-and ``Sigma_*``, ``alpha`` for NH), by mean success AUC, on the seven
-sequences that are now part of the *tune* split.  With the correlation-filter
-detector (the default map since) the detector's parameters and the grid's
-were chosen on the *tune* split by one protocol for all of them (mean AUC
-over its 13 sequences, seeds 0 and 1; the figures are in the commit messages); re-tuning ``sigma_star`` (0.15: 0.480 vs
-0.492) did not help NH.  With the constrained, colour-merged correlation
-detector the ``nh`` recipe's NormalHedge was re-tuned on the *tune* split
-(mean AUC, seeds 0-2): ``n_actions`` 300, ``alpha`` 0.6, ``sigma_star``
-0.35 give 0.586 against 0.527 for the class defaults (100, 0.4, 0.25);
-300 actions alone 0.541, with ``alpha`` 0.6 0.571, 0.8 0.576, with
-``sigma_star`` 0.35 0.552, 0.15 (100 actions) 0.507.  The ``bayes``
-recipe's random walk ``sigma_d`` is 0.15 box sizes (tune, deterministic:
-0.630; 0.07 / 0.1 / 0.2 / 0.25 with extent 2.5: 0.518 / 0.599 / 0.594 /
-0.597; ``sigma_s`` 0.2: 0.534).  ``cbt``'s options were re-checked the same
-way and kept (0.552; ``min_score`` 0.3 / 0.45 / 0.55: 0.534 / 0.502 / 0.498,
-``score_temperature`` 0.03 / 0.1: 0.518 / 0.486, ``prior_sigma`` 0.2:
-0.514).  The class defaults, and the ``-face`` recipes, are unchanged.
-
-All three mark the target ``lost`` when the map's peak score
+Lengths are in box sizes, so a filter behaves alike on any frame size; the
+``nh``, ``pf`` and ``bayes`` recipes (:mod:`vidtrack.recipes.normalhedge`)
+set the values they use on video.  All three mark the target ``lost`` when the map's peak score
 (``ScoreMap.quality``) is below ``lost_below``: they then skip the update and
 report their prediction.  Confidence is the weight (posterior) mass within
 ``radius`` box sizes of the estimate, times the peak-score quality.  Each
@@ -131,9 +112,9 @@ class NormalHedgeBoxFilter(_CentreBoxFilter):
     velocity_gain
         The dynamics function is ``F(x) = x + v`` with ``v`` a running
         average (this gain per frame) of the estimate's displacement; 0 gives
-        the seed's identity ``F``.
+        the paper's identity ``F``.
     rng
-        Seed or Generator.
+        Random seed or Generator.
     """
 
     def __init__(self, n_actions: int = 100, alpha: float = 0.4, sigma_star: float = 0.25,
@@ -170,7 +151,7 @@ class NormalHedgeBoxFilter(_CentreBoxFilter):
         return weighted_mean_cov(states, weights)[1] + np.eye(2) * 1e-6
 
     def predict(self) -> Estimate:
-        # x_{i,t+1} = F(x_{i,t}) = x_{i,t} + v (v = 0: the seed's identity F);
+        # x_{i,t+1} = F(x_{i,t}) = x_{i,t} + v (v = 0: the paper's identity F);
         # the prediction is the weighted mean of the moved actions.
         self.core_.states_ = self.core_.states_ + self.velocity_
         centre = self._keep_in_frame(self.core_.predict())
@@ -181,7 +162,7 @@ class NormalHedgeBoxFilter(_CentreBoxFilter):
     def loss_map(self, smap: ScoreMap) -> ScoreMap:
         """The map of ``q(s)`` averaged over a square of half-side ``window`` box sizes.
 
-        The seed's loss sums the clipped measurements over the object's
+        The paper's loss sums the clipped measurements over the object's
         extent; here the clipped score map is box-filtered over a window of
         ``2 window`` box sizes, which widens the needle-like NCC peak of a
         textured target into a basin the re-sampled actions can find.
@@ -315,8 +296,6 @@ class GridBayesBoxFilter(_CentreBoxFilter):
         Smallest grid spacing, pixels (bounds the cost on small boxes).
     extent
         Half-width of the grid window, in box sizes (the detector's window reaches about 1.75).
-        ``cell = 0.1`` and ``extent = 2`` were chosen on the tune split (mean AUC 0.549,
-        against 0.558 for 0.05 and 2.5 at a tenth of the speed).
     sigma_d, sigma_s, outside_score, lost_below, radius
         As in :class:`ParticleBoxFilter`.
     """

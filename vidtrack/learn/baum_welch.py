@@ -13,7 +13,7 @@ learning of section 3.4 uses the same code on such sets.
 * :func:`embedded_covariance` -- the same estimate for the order-``n`` Markov
   model embedded in a first-order one (state = the last ``n`` positions), as
   the conditional tensor ``G[x_k, x_{k-1}, ..., x_{k-n}]`` of
-  :mod:`vidtrack.filters.channels`.
+  :mod:`vidtrack.channels`.
 * :func:`measurement_matrix` -- the measurement model as a matrix from state
   channels to measurement channels, ``H[m, i]`` = channel ``m`` of
   ``p(z | x_i)``; the likelihood vector is ``h(z) = H' c(z)``.
@@ -31,7 +31,7 @@ from typing import Sequence
 
 import numpy as np
 
-from ..filters.channels import channel_product, current_marginal, embedded_counts, embedded_predict, encode, normalized
+from ..channels import channel_product, current_marginal, embedded_counts, embedded_predict, encode, normalized
 
 _TINY = 1e-300
 _LETTERS = "abcdefghij"
@@ -56,7 +56,7 @@ def embedded_covariance(seqs: Sequence[np.ndarray], order: int, targets: Sequenc
                         *, floor: float = 1e-6) -> np.ndarray:
     """Eq. 11 in the embedded model: ``G = counts / marginal of the previous n positions``.
 
-    ``counts`` is :func:`~vidtrack.filters.channels.embedded_counts` of ``seqs``
+    ``counts`` is :func:`~vidtrack.channels.embedded_counts` of ``seqs``
     (and ``targets``).
 
     Histories never seen get a uniform column (``floor`` keeps every entry

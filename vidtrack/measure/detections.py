@@ -6,7 +6,7 @@ NCC template of :mod:`vidtrack.measure.score_map`) after non-maximum suppression
 above ``min_score``, at most ``max_detections``, no two closer than
 ``nms_fraction`` of the box size.  Clutter (peaks on background that look a
 bit like the target) is kept on purpose and nothing associates a detection
-with the target: the channel-based tracker (:class:`~vidtrack.filters.channels.CBTFilter`)
+with the target: the channel-based tracker (:class:`~vidtrack.filters.cbt.CBTFilter`)
 sorts that out, as in "Learning Object Tracking in Image Sequences"
 (Felsberg & Larsson), whose RC-car experiment tracks from such detections.
 """
@@ -89,14 +89,11 @@ class DetectionMeasurer:
     nms_fraction
         Non-maximum suppression radius, as a fraction of the smaller box side.
     min_score
-        Lowest score reported as a detection (0.4 chosen for ``cbt`` on the tune
-        split: mean AUC 0.489, against 0.449 at 0.2 and 0.471 at 0.55).
+        Lowest score reported as a detection.
     max_detections
         At most this many detections per frame.
     scale_filter
         The ``cf`` detector estimates the box size (off: the init size).
-    cf_options
-        Further options of the ``cf`` detector (:class:`~vidtrack.measure.correlation.CorrelationScoreMapMeasurer`).
     """
 
     detector: str = "cf"
@@ -106,11 +103,9 @@ class DetectionMeasurer:
     min_score: float = 0.4
     max_detections: int = 10
     scale_filter: bool = True
-    cf_options: dict | None = None
 
     def initialize(self, frame: Frame, box: Box) -> None:
-        options = ({"margin": self.margin} if self.detector == "ncc"
-                   else {"scale_filter": self.scale_filter, **(self.cf_options or {})})
+        options = {"margin": self.margin} if self.detector == "ncc" else {"scale_filter": self.scale_filter}
         self.detector_ = make_detector(self.detector, **options)
         self.detector_.initialize(frame, box)
 
