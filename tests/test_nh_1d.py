@@ -62,7 +62,7 @@ def test_paper_path_moves_then_rests_with_the_rms_the_papers_blind_pf_implies():
 
 def _args(**kw):
     base = dict(runs=4, seed=0, rhos="0,0.2", sigmas="1", steps=120, plot=None, plot_rho=0.2,
-                nh_init="prior", true_path="seed")
+                nh_init="prior", true_path="ramp")
     base.update(kw)
     return argparse.Namespace(**base)
 

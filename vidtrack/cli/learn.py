@@ -1,6 +1,6 @@
 """``vidtrack learn cbt VIDEO_OR_DATASET --out model.npz``: learn a Channel-Based Tracking motion model.
 
-The model (:class:`~vidtrack.filters.channels.CBTModel`) holds per-axis
+The model (:class:`~vidtrack.filters.cbt_model.CBTModel`) holds per-axis
 displacement conditionals ``D[d_k, d_{k-1}, ...]`` on a cos² channel basis,
 displacements measured in box sizes, estimated by the normalised covariance
 of consecutive channel vectors (eq. 11 of "Learning Object Tracking in Image
@@ -52,10 +52,11 @@ def _interpolated_tracks(centres: np.ndarray, annotated: np.ndarray, max_gap: in
 
 def learn_from_dataset(path: str, *, order: int, names: list[str] | None, max_gap: int, prior_weight: float):
     from ..eval.datasets import load_dataset
-    from ..filters.channels import (CBTFilter, CBTModel, ChannelBasis, conditional_from_counts,
-                                   displacement_counts, random_walk_displacement)
+    from ..channels import ChannelBasis, conditional_from_counts, displacement_counts, random_walk_displacement
+    from ..filters.cbt_model import CBTModel
+    from ..recipes.channels import CBTConfig
 
-    defaults = CBTFilter()
+    defaults = CBTConfig()
     basis = ChannelBasis(-defaults.d_range, defaults.d_range, defaults.d_channels)
     counts = [np.zeros((basis.n,) * order) for _ in range(2)]
     used = frames = 0
@@ -78,7 +79,7 @@ def learn_from_dataset(path: str, *, order: int, names: list[str] | None, max_ga
 
 
 def learn_from_video(path: str, init_box: str, *, order: int, max_frames: int | None, prior_weight: float):
-    from ..filters.channels import CBTModel
+    from ..filters.cbt_model import CBTModel
     from ..recipes import build_tracker
     from ..run import run_tracker
     from ..sources import open_source

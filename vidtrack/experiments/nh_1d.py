@@ -33,7 +33,7 @@ read the same measurements:
 Per run the RMSE over the ``T = 200`` steps is computed; the table reports
 its mean and standard deviation over the runs.
 
-The true path (``--true-path``): the paper does not give it.  ``seed``
+The true path (``--true-path``): the paper does not give it.  ``ramp``
 (the default) is one path for every run, speed 1 for the first ``T/2``
 steps, then at rest (RMS 81.5 for ``T = 200``); ``random`` draws a new
 path per run, segments of 20-60 steps, each at rest or moving at a constant
@@ -94,7 +94,7 @@ def true_paths(n_runs: int, T: int, rng: np.random.Generator) -> np.ndarray:
 
 
 def paper_path(T: int) -> np.ndarray:
-    """``z_t = min(t, T/2)``: speed 1 for the first half, then at rest (``--true-path seed``, the default)."""
+    """``z_t = min(t, T/2)``: speed 1 for the first half, then at rest (``--true-path ramp``, the default)."""
     return np.minimum(np.arange(T, dtype=float), T // 2)
 
 
@@ -255,8 +255,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--steps", type=int, default=200, help="time steps T (default 200)")
     parser.add_argument("--nh-init", choices=("prior", "uniform"), default="prior",
                         help="NH's initial actions: N(z_1, Sigma_*) (default) or uniform on [-500, 500]")
-    parser.add_argument("--true-path", choices=("seed", "random"), default="seed",
-                        help="seed: speed 1 for T/2 steps then at rest, one path for every run, the path the "
+    parser.add_argument("--true-path", choices=("ramp", "random"), default="ramp",
+                        help="ramp: speed 1 for T/2 steps then at rest, one path for every run, the path the "
                              "paper's PF rows imply (default); random: a new piecewise path per run")
     parser.add_argument("--plot", metavar="FILE", help="plot true/NH/Bayes paths of 5 runs (like Figs 2-3)")
     parser.add_argument("--plot-rho", type=float, default=0.2, help="rho of the plotted runs (default 0.2)")
@@ -276,7 +276,7 @@ def run(args, progress) -> dict:
     if plot_path:
         from ..sinks.base import open_text_output  # fail early on an unwritable path
         open_text_output(plot_path).close()
-    shared_path = paper_path(args.steps) if args.true_path == "seed" else None
+    shared_path = paper_path(args.steps) if args.true_path == "ramp" else None
     conditions = [(s, r) for s in sigmas for r in rhos]
     rows, plotted = [], {}
     start = time.perf_counter()
