@@ -10,11 +10,17 @@ from __future__ import annotations
 import sys
 from pathlib import Path
 
-from ..errors import UsageError
+from ..errors import DatasetError, UsageError
 from .common import (EXIT_FAILED, EXIT_OK, OneLineParser, add_settings_arguments, check_settings, progress_bar,
                      tracker_settings)
 
+LAYOUT_NAMES = ("otb", "lasot", "got10k", "uav123", "vot")
+
 EPILOG = """\
+DATASET_DIR is read as downloaded: OTB-100 (and OTB-2013/50, MIL), LaSOT, GOT-10k, UAV123 or VOT,
+detected from the folder or named with --layout.  A sequence that cannot be read is named with its
+reason on stderr and the others still run (exit 1).
+
 Writes OUT/<filter>/<Sequence>.txt (one x,y,w,h line per ground-truth line, in that sequence's own
 convention: OTB folders 1-based, MIL data 0-based; rows not tracked are 0,0,0,0) with a .json run
 record and a .confidence.csv (per-frame confidence and status) beside it, OUT/summary.json,
@@ -30,16 +36,18 @@ tracker listed; one a listed tracker does not take is an error naming that track
 
 def build_parser() -> OneLineParser:
     parser = OneLineParser(prog="vidtrack eval", epilog=EPILOG,
-                           description="Evaluate trackers on benchmark sequences (OTB or MIL layout): "
+                           description="Evaluate trackers on benchmark sequences (OTB, MIL, LaSOT, GOT-10k, UAV123, VOT): "
                                        "OTB success AUC, precision@20, PASCAL score, centre error, fps.")
     parser.add_argument("dataset", metavar="DATASET_DIR", nargs="?",
-                        help="folder of sequence folders (img/ + groundtruth_rect.txt, or MIL imgs/ + "
-                             "<name>_gt.txt), or one sequence folder")
+                        help="a benchmark folder as downloaded (OTB, MIL, LaSOT, GOT-10k, UAV123, VOT), "
+                             "or one sequence folder")
     parser.add_argument("--filter", metavar="A,B,C", help="comma-separated tracker names (required)")
     parser.add_argument("--compare", nargs=2, metavar=("DIR_A", "DIR_B"),
                         help="instead of evaluating: print the change in AUC from DIR_A to DIR_B (two --out folders)")
     parser.add_argument("--attributes", metavar="FILE",
                         help="OTB attribute file (name<TAB>TAG, TAG, ...; default: DATASET_DIR/attr_list.txt if any)")
+    parser.add_argument("--layout", choices=LAYOUT_NAMES,
+                        help="the dataset's layout (default: detected from the folder)")
     parser.add_argument("--sequences", metavar="S1,S2", help="only these sequences (default: all)")
     parser.add_argument("--out", default="results", metavar="DIR", help="output folder (default: results)")
     parser.add_argument("--jobs", type=int, default=1, metavar="N",
@@ -73,7 +81,7 @@ def _names(text: str, option: str) -> list[str]:
 def main(argv: list[str]) -> int:
     """Entry point of ``vidtrack eval`` (exit 0, or 2 on bad input; 1 when a tracker failed)."""
     from ..eval.attributes import by_attribute
-    from ..eval.datasets import load_dataset
+    from ..eval.datasets import read_dataset
     from ..eval.evaluation import run_evaluation
     from ..eval.html_report import write_report
     from ..eval.plots import attribute_plot, write_plots
@@ -109,7 +117,13 @@ def main(argv: list[str]) -> int:
                 raise UsageError("--rerun needs vidtrack.sinks.rerun, which is not in this build") from None
             raise UsageError(f"--rerun needs the rerun-sdk package ({exc.name} is missing)") from None
     names = _names(args.sequences, "--sequences") if args.sequences else None
-    sequences = load_dataset(args.dataset, names)
+    reading = read_dataset(args.dataset, names, layout=args.layout)
+    if not reading.sequences:
+        raise DatasetError(next(iter(reading.errors.values())))
+    if not args.quiet:
+        for reason in reading.errors.values():
+            print(f"vidtrack eval: skipped: {reason}", file=sys.stderr)
+    sequences = reading.sequences
     attributes = _attributes(args.attributes, args.dataset)
 
     def report(output) -> None:
@@ -144,7 +158,11 @@ def main(argv: list[str]) -> int:
         print(f"vidtrack eval: {counts['done']} run, {counts['reused']} reused, {counts['failed']} failed; "
               f"wrote {', '.join(str(p) for p in written)} and {Path(args.out)}/<filter>/<Sequence>.txt",
               file=sys.stderr)
-    return EXIT_FAILED if "failed" in evaluation.status.values() else EXIT_OK
+    if reading.errors:
+        print(f"vidtrack eval: {len(reading.errors)} sequence(s) could not be read: "
+              + "; ".join(reading.errors.values()), file=sys.stderr)
+    failed = "failed" in evaluation.status.values() or bool(reading.errors)
+    return EXIT_FAILED if failed else EXIT_OK
 
 
 def _attributes(option: str | None, dataset: str) -> dict[str, tuple[str, ...]] | None:
