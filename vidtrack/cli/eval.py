@@ -15,6 +15,7 @@ from .common import (EXIT_FAILED, EXIT_OK, OneLineParser, add_settings_arguments
                      tracker_settings)
 
 LAYOUT_NAMES = ("otb", "lasot", "got10k", "uav123", "vot")
+SUBSET_NAMES = ("otb2013", "otb50", "otb100", "lasot-test")
 
 EPILOG = """\
 DATASET_DIR is read as downloaded: OTB-100 (and OTB-2013/50, MIL), LaSOT, GOT-10k, UAV123 or VOT,
@@ -48,7 +49,10 @@ def build_parser() -> OneLineParser:
                         help="OTB attribute file (name<TAB>TAG, TAG, ...; default: DATASET_DIR/attr_list.txt if any)")
     parser.add_argument("--layout", choices=LAYOUT_NAMES,
                         help="the dataset's layout (default: detected from the folder)")
-    parser.add_argument("--sequences", metavar="S1,S2", help="only these sequences (default: all)")
+    parser.add_argument("--sequences", metavar="S1,S2|LIST.txt",
+                        help="only these sequences, named or listed one a line in a .txt file (default: all)")
+    parser.add_argument("--subset", choices=SUBSET_NAMES,
+                        help="only the sequences of a published list (those the dataset lacks are reported)")
     parser.add_argument("--out", default="results", metavar="DIR", help="output folder (default: results)")
     parser.add_argument("--jobs", type=int, default=1, metavar="N",
                         help="run N jobs (tracker x sequence) in parallel processes (default 1)")
@@ -116,8 +120,10 @@ def main(argv: list[str]) -> int:
             if exc.name and exc.name.startswith("vidtrack"):
                 raise UsageError("--rerun needs vidtrack.sinks.rerun, which is not in this build") from None
             raise UsageError(f"--rerun needs the rerun-sdk package ({exc.name} is missing)") from None
-    names = _names(args.sequences, "--sequences") if args.sequences else None
-    reading = read_dataset(args.dataset, names, layout=args.layout)
+    if args.sequences and args.subset:
+        raise UsageError("--sequences and --subset both choose sequences: give one")
+    names = _sequence_names(args.sequences) if args.sequences else None
+    reading = read_dataset(args.dataset, names, layout=args.layout, subset=args.subset)
     if not reading.sequences:
         raise DatasetError(next(iter(reading.errors.values())))
     if not args.quiet:
@@ -163,6 +169,17 @@ def main(argv: list[str]) -> int:
               + "; ".join(reading.errors.values()), file=sys.stderr)
     failed = "failed" in evaluation.status.values() or bool(reading.errors)
     return EXIT_FAILED if failed else EXIT_OK
+
+
+def _sequence_names(option: str) -> list[str]:
+    """``--sequences``: a list file (one name a line) or comma-separated names."""
+    from ..eval.datasets import read_names
+
+    if option.lower().endswith(".txt") or Path(option).is_file():
+        if not Path(option).is_file():
+            raise UsageError(f"--sequences: no such file: {option}")
+        return read_names(option)
+    return _names(option, "--sequences")
 
 
 def _attributes(option: str | None, dataset: str) -> dict[str, tuple[str, ...]] | None:

@@ -25,17 +25,19 @@ every sequence it can and reports each one it cannot with the reason;
 
 from __future__ import annotations
 
+import re
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Callable
 
 from ..errors import DatasetError
 from .layouts import got10k, lasot, otb, uav123, vot
-from .sequence import BenchmarkSequence, annotated_rows, check_init_box, parse_boxes, read_boxes
+from .sequence import BenchmarkSequence, annotated_rows, check_init_box, parse_boxes, read_boxes, read_list
+from .subsets import SUBSETS
 
 __all__ = ["LAYOUTS", "BenchmarkSequence", "DatasetReading", "annotated_rows", "check_init_box", "detect_layout",
            "find_sequences", "is_sequence_folder", "load_dataset", "load_sequence", "parse_boxes", "read_boxes",
-           "read_dataset", "sequence_entries"]
+           "read_dataset", "read_names", "sequence_entries"]
 
 #: Layout name -> its reader module, in the order :func:`detect_layout` tries them.
 LAYOUTS = {"uav123": uav123, "lasot": lasot, "got10k": got10k, "vot": vot, "otb": otb}
@@ -104,36 +106,61 @@ class DatasetReading:
     errors: dict[str, str] = field(default_factory=dict)
 
 
-def _choose(entries: dict, names: list[str] | None, dataset: str | Path) -> list[str]:
+def _matches(entries: dict, name: str) -> list[str]:
+    """Entries named ``name`` (any case), else its targets ``name-1``, ``name-2`` ... (a two-target folder)."""
+    if name in entries:
+        return [name]
+    lower = name.lower()
+    exact = [n for n in entries if n.lower() == lower]
+    if exact:
+        return exact[:1]
+    targets = re.compile(rf"^{re.escape(lower)}-\d+$")
+    return [n for n in entries if targets.match(n.lower())]
+
+
+def _choose(entries: dict, names: list[str] | None, dataset: str | Path, *, subset: str | None = None
+            ) -> tuple[list[str], dict[str, str]]:
+    """The entries ``names`` select, in order, and ``{name: reason}`` for subset names not in the dataset."""
     if names is None:
-        return list(entries)
-    by_lower = {n.lower(): n for n in entries}
-    chosen = []
+        return list(entries), {}
+    chosen: list[str] = []
+    missing: dict[str, str] = {}
     for name in names:
-        key = name if name in entries else by_lower.get(name.lower())
-        if key is None:
+        found = _matches(entries, name)
+        if not found and subset is None:
             raise DatasetError(f"unknown sequence {name!r}; sequences in {dataset}: {', '.join(entries)}")
-        if key not in chosen:
-            chosen.append(key)
-    return chosen
+        if not found:
+            missing[name] = f"sequence {name}: not in {dataset} (a sequence of the subset {subset})"
+        chosen += [n for n in found if n not in chosen]
+    return chosen, missing
 
 
-def read_dataset(dataset: str | Path, names: list[str] | None = None, *, layout: str | None = None
-                 ) -> DatasetReading:
-    """Read the sequences of ``dataset`` (all, or those in ``names``, in that order), each on its own.
+def read_dataset(dataset: str | Path, names: list[str] | None = None, *, layout: str | None = None,
+                 subset: str | None = None) -> DatasetReading:
+    """Read the sequences of ``dataset`` (all, those in ``names`` or those of ``subset``, in that order).
 
-    A sequence that cannot be read is recorded in ``errors`` with the reason
-    (``sequence NAME: ...``); the others are still read.
+    A name selects the sequence of that name (any case) or, failing that, the
+    targets of a two-target folder (``Jogging`` selects ``Jogging-1`` and
+    ``Jogging-2``).  ``subset`` is a published list of :data:`SUBSETS
+    <vidtrack.eval.subsets.SUBSETS>` (``otb100``, ``lasot-test`` ...).  A
+    sequence that cannot be read, or a subset's sequence the dataset lacks, is
+    recorded in ``errors`` with the reason (``sequence NAME: ...``); the others
+    are still read.
 
     Raises
     ------
     DatasetError
-        For a missing folder, an unknown layout or sequence name (the message
-        lists the valid ones), or a folder with no sequence.
+        For a missing folder, an unknown layout, subset or sequence name (the
+        message lists the valid ones), or a folder with no sequence.
     """
     entries = sequence_entries(dataset, layout)
-    reading = DatasetReading()
-    for name in _choose(entries, names, dataset):
+    if subset is not None:
+        if subset not in SUBSETS:
+            raise DatasetError(f"unknown subset {subset!r}; subsets: {', '.join(SUBSETS)}")
+        names = SUBSETS[subset]
+    chosen, missing = _choose(entries, names, dataset, subset=subset)
+    reading = DatasetReading(errors=missing)
+    for name in chosen:
         try:
             reading.sequences.append(entries[name]())
         except DatasetError as exc:
@@ -152,5 +179,19 @@ def load_dataset(dataset: str | Path, names: list[str] | None = None, *, layout:
         As :func:`read_dataset`, and for the first sequence that cannot be read.
     """
     entries = sequence_entries(dataset, layout)
-    return [entries[name]() for name in _choose(entries, names, dataset)]
+    return [entries[name]() for name in _choose(entries, names, dataset)[0]]
 
+
+
+def read_names(path: str | Path) -> list[str]:
+    """Sequence names from a ``list.txt`` (one a line; blank lines and ``#`` comments ignored).
+
+    Raises
+    ------
+    DatasetError
+        When the file cannot be read or names no sequence.
+    """
+    names = read_list(Path(path))
+    if not names:
+        raise DatasetError(f"{path} names no sequence")
+    return names
