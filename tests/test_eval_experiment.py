@@ -16,8 +16,8 @@ from vidtrack.eval.synthetic import write_sequence
 from vidtrack.recipes import Recipe, registry
 from vidtrack.types import TrackState
 
-METRICS = {"auc", "precision20", "pascal", "center_error", "fps", "false_lost", "missed_loss", "confidence_auc",
-           "lost_rate"}
+METRICS = {"auc", "precision20", "pascal", "center_error", "norm_precision", "fps", "false_lost", "missed_loss",
+           "confidence_auc", "lost_rate"}
 
 
 class StaticTracker:

@@ -33,10 +33,12 @@ THUMB_WIDTH = 184
 #: that a box wobbling around 0.5 is not shown as a failure but one visibly off the target is.
 FAIL_BELOW = 0.3
 
-SCORE_COLUMNS = (("auc", "AUC", 3), ("precision20", "Prec@20", 3), ("pascal", "PASCAL", 3),
-                 ("center_error", "CLE px", 1), ("fps", "fps", 1), ("lost_rate", "lost", 3),
+SCORE_COLUMNS = (("auc", "AUC", 3), ("precision20", "Prec@20", 3), ("norm_precision", "NormPrec", 3),
+                 ("pascal", "PASCAL", 3), ("center_error", "CLE px", 1), ("fps", "fps", 1), ("lost_rate", "lost", 3),
                  ("false_lost", "false lost", 3), ("missed_loss", "missed loss", 3),
                  ("confidence_auc", "conf. ROC AUC", 3))
+#: GOT-10k's average overlap and success rates, shown when a sequence has them.
+GOT10K_COLUMNS = (("ao", "AO", 3), ("sr50", "SR0.5", 3), ("sr75", "SR0.75", 3))
 
 _STYLE = """
 body{font-family:system-ui,sans-serif;margin:1.2em 2em;color:#222;background:#fafafa}
@@ -244,18 +246,20 @@ def _sequence_strip(sequence, boxes: Mapping[str, np.ndarray], best: str | None,
 
 def _score_tables(summary: Mapping[str, Mapping[str, Mapping[str, Any]]],
                   colours: Mapping[str, tuple[int, int, int]]) -> tuple[str, str]:
-    header = ["filter", *(title for _, title, _ in SCORE_COLUMNS)]
+    has_got = any("ao" in row for rows in summary.values() for row in rows.values())
+    columns = SCORE_COLUMNS[:5] + GOT10K_COLUMNS + SCORE_COLUMNS[5:] if has_got else SCORE_COLUMNS
+    header = ["filter", *(title for _, title, _ in columns)]
     means, per_sequence = [], []
     for name, rows in summary.items():
         mean = rows.get("mean", {})
         failed = f" ({len(mean['failed'])} failed)" if mean.get("failed") else ""
         means.append("<tr>" + _text_cell(name + failed, _hex(colours[name]))
-                     + "".join(_td(mean.get(k), d) for k, _, d in SCORE_COLUMNS) + "</tr>")
+                     + "".join(_td(mean.get(k), d) for k, _, d in columns) + "</tr>")
         for sequence, row in rows.items():
             if sequence == "mean":
                 continue
-            cells = (f'<td class="t" colspan="{len(SCORE_COLUMNS)}">FAILED: {html.escape(str(row["error"]))}</td>'
-                     if "error" in row else "".join(_td(row.get(k), d) for k, _, d in SCORE_COLUMNS))
+            cells = (f'<td class="t" colspan="{len(columns)}">FAILED: {html.escape(str(row["error"]))}</td>'
+                     if "error" in row else "".join(_td(row.get(k), d) for k, _, d in columns))
             per_sequence.append("<tr>" + _text_cell(name, _hex(colours[name])) + _text_cell(sequence) + cells
                                 + "</tr>")
     return (_table(header, means),

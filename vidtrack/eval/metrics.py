@@ -13,7 +13,22 @@ papers:
   frames with ``IoU > t``;
 * precision@20: fraction of frames with centre error ``<= 20`` px;
 * PASCAL score: fraction of frames with ``IoU > 0.5``;
-* centre error: Euclidean distance of box centres, mean in px.
+* centre error: Euclidean distance of box centres, mean in px;
+* normalised precision (Fan et al., "LaSOT: A High-quality Benchmark for
+  Large-scale Single Object Tracking", CVPR 2019; also TrackingNet's): the
+  centre error with each axis divided by the ground-truth box's size (at least
+  1 px), and the area under its precision curve over thresholds
+  ``0, 0.01, ..., 0.5``, i.e. the mean of the curve;
+* GOT-10k (Huang, Zhao, Huang, "GOT-10k: A Large High-Diversity Benchmark
+  for Generic Object Tracking in the Wild", TPAMI 2021): average overlap
+  ``AO`` = mean IoU, success rates ``SR0.5`` and ``SR0.75`` = fractions of
+  frames with ``IoU > 0.5`` / ``> 0.75``, over the frames after the first
+  where the target is present, both boxes clipped to the frame; the overall
+  figures pool the frames of every sequence.
+
+The success and precision curves use each benchmark's own threshold grid
+(:data:`SUCCESS_GRIDS`): OTB, LaSOT and UAV123 ``0, 0.05, ..., 1``; GOT-10k
+``0, 0.01, ..., 1``.
 
 Only the frames selected by ``mask`` (by default the annotated ground-truth
 rows, see :func:`~vidtrack.eval.datasets.annotated_rows`) are scored.
@@ -29,7 +44,13 @@ from .datasets import annotated_rows
 SUCCESS_THRESHOLDS = np.linspace(0.0, 1.0, 21)
 #: OTB precision-plot thresholds 0 .. 50 px.
 PRECISION_THRESHOLDS = np.arange(0, 51, dtype=float)
-METRIC_NAMES = ("auc", "precision20", "pascal", "center_error")
+#: LaSOT's normalised-precision thresholds 0, 0.01, ..., 0.5 (51 values).
+NORM_PRECISION_THRESHOLDS = np.linspace(0.0, 0.5, 51)
+#: Success-plot thresholds of each benchmark layout (OTB's for the others).
+SUCCESS_GRIDS = {"got10k": np.linspace(0.0, 1.0, 101)}
+METRIC_NAMES = ("auc", "precision20", "pascal", "center_error", "norm_precision")
+#: GOT-10k's metrics, on the sequences of that layout.
+GOT10K_METRICS = ("ao", "sr50", "sr75")
 
 
 def _as_boxes(boxes) -> np.ndarray:
@@ -70,6 +91,44 @@ def center_error(boxes_a, boxes_b) -> np.ndarray:
     return np.where(np.isfinite(distance), distance, np.inf)
 
 
+def normalized_center_error(results, ground_truth) -> np.ndarray:
+    """Row-wise centre distance with each axis divided by the ground truth's ``w`` / ``h`` (at least 1) -> ``(N,)``.
+
+    ``sqrt(((cx_r - cx_g) / max(1, w_g))^2 + ((cy_r - cy_g) / max(1, h_g))^2)``;
+    rows with a non-finite value give ``inf``.
+    """
+    a, b = _as_boxes(results), _as_boxes(ground_truth)
+    if a.shape != b.shape:
+        raise ValueError(f"box arrays differ in shape: {a.shape} vs {b.shape}")
+    offset = (a[:, :2] + a[:, 2:] / 2.0) - (b[:, :2] + b[:, 2:] / 2.0)
+    with np.errstate(invalid="ignore"):
+        distance = np.hypot(*(offset / np.maximum(b[:, 2:], 1.0)).T)
+    return np.where(np.isfinite(distance), distance, np.inf)
+
+
+def normalized_precision(norm_errors) -> float:
+    """Mean over ``0, 0.01, ..., 0.5`` of the fraction of frames with normalised error ``<= t`` (LaSOT)."""
+    return float(np.mean(precision_curve(norm_errors, NORM_PRECISION_THRESHOLDS)))
+
+
+def clip_to_frame(boxes, width: float, height: float) -> np.ndarray:
+    """Boxes cut to the frame ``[0, width] x [0, height]`` (0-based pixels): a new ``(N, 4)`` array."""
+    boxes = _as_boxes(boxes)
+    boxes[:, 0] = np.clip(boxes[:, 0], 0.0, width)
+    boxes[:, 1] = np.clip(boxes[:, 1], 0.0, height)
+    boxes[:, 2] = np.clip(boxes[:, 2], 0.0, width - boxes[:, 0])
+    boxes[:, 3] = np.clip(boxes[:, 3], 0.0, height - boxes[:, 1])
+    return boxes
+
+
+def got10k_scores(ious) -> dict[str, float]:
+    """GOT-10k's ``ao`` (mean IoU), ``sr50`` and ``sr75`` (fractions with IoU > 0.5, > 0.75); NaN with no frame."""
+    ious = np.asarray(ious, dtype=float).ravel()
+    if ious.size == 0:
+        return dict.fromkeys(GOT10K_METRICS, float("nan"))
+    return {"ao": float(np.mean(ious)), "sr50": float(np.mean(ious > 0.5)), "sr75": float(np.mean(ious > 0.75))}
+
+
 def success_curve(ious, thresholds=SUCCESS_THRESHOLDS) -> np.ndarray:
     """Fraction of frames with ``IoU > t`` for each threshold ``t`` (OTB success plot)."""
     ious = np.asarray(ious, dtype=float).ravel()
@@ -103,8 +162,8 @@ def pascal_score(ious, threshold: float = 0.5) -> float:
     return float(success_curve(ious, [threshold])[0])
 
 
-def frame_scores(results, ground_truth, mask=None) -> tuple[np.ndarray, np.ndarray]:
-    """Per scored frame ``(ious, centre_errors)``.
+def frame_scores(results, ground_truth, mask=None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Per scored frame ``(ious, centre_errors, normalised_centre_errors)``.
 
     Parameters
     ----------
@@ -120,26 +179,27 @@ def frame_scores(results, ground_truth, mask=None) -> tuple[np.ndarray, np.ndarr
     keep = annotated_rows(ground_truth)
     if mask is not None:
         keep = keep & np.asarray(mask, dtype=bool).ravel()
-    return iou(results[keep], ground_truth[keep]), center_error(results[keep], ground_truth[keep])
+    kept, truth = results[keep], ground_truth[keep]
+    return iou(kept, truth), center_error(kept, truth), normalized_center_error(kept, truth)
 
 
 def score(results, ground_truth, mask=None) -> dict[str, float]:
-    """``auc``, ``precision20``, ``pascal``, ``center_error`` and ``frames`` (count scored).
+    """``auc``, ``precision20``, ``pascal``, ``center_error``, ``norm_precision`` and ``frames`` (count scored).
 
     See :func:`frame_scores` for the arguments and :func:`summarize` for the metrics.
     """
     return summarize(*frame_scores(results, ground_truth, mask))
 
 
-def summarize(ious: np.ndarray, errors: np.ndarray) -> dict[str, float]:
-    """The metrics of :func:`score` from per-frame ``(ious, centre_errors)``; NaN with no frame."""
+def summarize(ious: np.ndarray, errors: np.ndarray, norm_errors: np.ndarray | None = None) -> dict[str, float]:
+    """The metrics of :func:`score` from per-frame ``(ious, centre_errors, normalised errors)``; NaN with no frame."""
     if ious.size == 0:
-        return {"auc": float("nan"), "precision20": float("nan"), "pascal": float("nan"),
-                "center_error": float("nan"), "frames": 0}
+        return {**dict.fromkeys(METRIC_NAMES, float("nan")), "frames": 0}
     return {
         "auc": success_auc(ious),
         "precision20": precision_at(errors, 20.0),
         "pascal": pascal_score(ious, 0.5),
         "center_error": float(np.mean(errors)),
+        "norm_precision": float("nan") if norm_errors is None else normalized_precision(norm_errors),
         "frames": int(ious.size),
     }

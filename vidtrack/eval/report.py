@@ -14,8 +14,16 @@ from typing import Any
 
 from ..errors import OutputError
 
-COLUMNS = (("auc", "AUC", "{:.3f}"), ("precision20", "Prec@20", "{:.3f}"), ("pascal", "PASCAL", "{:.3f}"),
-           ("center_error", "CLE px", "{:.1f}"), ("fps", "fps", "{:.1f}"))
+COLUMNS = (("auc", "AUC", "{:.3f}"), ("precision20", "Prec@20", "{:.3f}"), ("norm_precision", "NormPrec", "{:.3f}"),
+           ("pascal", "PASCAL", "{:.3f}"), ("center_error", "CLE px", "{:.1f}"), ("fps", "fps", "{:.1f}"))
+#: GOT-10k's columns, shown when a row has them.
+GOT10K_COLUMNS = (("ao", "AO", "{:.3f}"), ("sr50", "SR0.5", "{:.3f}"), ("sr75", "SR0.75", "{:.3f}"))
+
+
+def score_columns(summary: dict[str, dict[str, dict[str, Any]]]) -> tuple[tuple[str, str, str], ...]:
+    """The table's columns: :data:`COLUMNS`, and GOT-10k's before ``fps`` when any row has them."""
+    has_got = any("ao" in row for per in summary.values() for row in per.values())
+    return COLUMNS[:-1] + GOT10K_COLUMNS + COLUMNS[-1:] if has_got else COLUMNS
 
 
 def _cell(value: Any, fmt: str) -> str:
@@ -28,23 +36,26 @@ def format_table(summary: dict[str, dict[str, dict[str, Any]]]) -> str:
     """A Markdown table: one row per filter and sequence, then the filter's mean.
 
     ``AUC`` is the OTB success AUC, ``Prec@20`` the fraction of frames with
-    centre error <= 20 px, ``PASCAL`` the fraction with IoU > 0.5, ``CLE``
-    the mean centre-location error and ``fps`` the tracker's speed in that run.
+    centre error <= 20 px, ``NormPrec`` LaSOT's normalised precision,
+    ``PASCAL`` the fraction with IoU > 0.5, ``CLE`` the mean centre-location
+    error, ``AO``, ``SR0.5`` and ``SR0.75`` GOT-10k's (on its sequences; the
+    mean row pools their frames) and ``fps`` the tracker's speed in that run.
     """
-    header = ["filter", "sequence", *(title for _, title, _ in COLUMNS)]
+    columns = score_columns(summary)
+    header = ["filter", "sequence", *(title for _, title, _ in columns)]
     rows = []
     for name, per_sequence in summary.items():
         for sequence, row in per_sequence.items():
             if sequence == "mean":
                 continue
             if "error" in row:
-                rows.append([name, sequence, f"FAILED: {row['error']}"[:80], "", "", "", ""])
+                rows.append([name, sequence, f"FAILED: {row['error']}"[:80], *[""] * (len(columns) - 1)])
             else:
-                rows.append([name, sequence, *(_cell(row.get(k), fmt) for k, _, fmt in COLUMNS)])
+                rows.append([name, sequence, *(_cell(row.get(k), fmt) for k, _, fmt in columns)])
         mean = per_sequence.get("mean", {})
         label = "**mean**" if not mean.get("failed") else f"**mean** ({len(mean['failed'])} failed)"
-        rows.append([name, label, *(_cell(mean.get(k), fmt) for k, _, fmt in COLUMNS)])
-    return _markdown(header, rows, [False, False] + [True] * len(COLUMNS))
+        rows.append([name, label, *(_cell(mean.get(k), fmt) for k, _, fmt in columns)])
+    return _markdown(header, rows, [False, False] + [True] * len(columns))
 
 
 def _markdown(header: list[str], rows: list[list[Any]], right: list[bool]) -> str:

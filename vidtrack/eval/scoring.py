@@ -22,8 +22,8 @@ import numpy as np
 from ..errors import DatasetError
 from . import confidence as conf
 from .datasets import BenchmarkSequence, read_boxes
-from .metrics import (METRIC_NAMES, PRECISION_THRESHOLDS, SUCCESS_THRESHOLDS, frame_scores, iou, precision_curve,
-                      success_curve, summarize)
+from .metrics import (METRIC_NAMES, PRECISION_THRESHOLDS, SUCCESS_GRIDS, SUCCESS_THRESHOLDS, clip_to_frame,
+                      frame_scores, got10k_scores, iou, precision_curve, success_curve, summarize)
 from .results import result_paths
 
 Curves = dict[tuple[str, str], tuple[np.ndarray, np.ndarray]]
@@ -38,6 +38,25 @@ class SequenceScore:
     success: np.ndarray | None = None
     precision: np.ndarray | None = None
     frames: tuple[np.ndarray, ...] | None = None  # (ious, confidence, status, measured) for the confidence metrics
+    got10k_ious: np.ndarray | None = None  # the frames GOT-10k scores, pooled into the overall AO and SR
+
+
+def got10k_frames(sequence: BenchmarkSequence, results: np.ndarray, mask: np.ndarray) -> np.ndarray:
+    """IoUs of the frames GOT-10k scores: after the init frame, target present, boxes clipped to the frame.
+
+    Present means ``cover.label`` > 0 where the sequence has one (the GOT-10k
+    toolkit's rule), else not marked absent.
+    """
+    keep = mask & sequence.annotated
+    keep[sequence.init_index] = False
+    hidden = sequence.occluded if sequence.occluded is not None else sequence.absent
+    if hidden is not None:
+        keep &= ~hidden
+    a, b = results[keep], sequence.ground_truth[keep]
+    if sequence.frame_size is not None:
+        width, height = sequence.frame_size
+        a, b = clip_to_frame(a, width, height), clip_to_frame(b, width, height)
+    return iou(a, b)
 
 
 def score_result(sequence: BenchmarkSequence, result_path: Path, record: Mapping[str, Any] | None) -> SequenceScore:
@@ -52,10 +71,14 @@ def score_result(sequence: BenchmarkSequence, result_path: Path, record: Mapping
     start, stop = record["tracked"] if record else sequence.eval_range
     mask = np.zeros(len(sequence), dtype=bool)
     mask[start:stop] = True
-    ious, errors = frame_scores(results, sequence.ground_truth, mask)
-    metrics = summarize(ious, errors)
+    ious, errors, norm_errors = frame_scores(results, sequence.ground_truth, mask)
+    metrics = summarize(ious, errors, norm_errors)
     fps = float(record["fps"]) if record and record.get("fps") is not None else float("nan")
     row = {name: metrics[name] for name in METRIC_NAMES}
+    got_ious = None
+    if sequence.layout == "got10k":
+        got_ious = got10k_frames(sequence, results, mask)
+        row.update(got10k_scores(got_ious))
     row["fps"] = fps
     frames = None
     row.update(dict.fromkeys(conf.CONFIDENCE_KEYS, float("nan")))
@@ -65,8 +88,9 @@ def score_result(sequence: BenchmarkSequence, result_path: Path, record: Mapping
         confidence, status, measured = conf.read_confidence(conf.confidence_path(result_path), len(sequence))
         frames = (iou(results[keep], sequence.ground_truth[keep]), confidence[keep], status[keep], measured[keep])
         row.update(conf.confidence_metrics(*frames[:3]))
-    return SequenceScore(row, success_curve(ious, SUCCESS_THRESHOLDS), precision_curve(errors, PRECISION_THRESHOLDS),
-                         frames)
+    grid = SUCCESS_GRIDS.get(sequence.layout, SUCCESS_THRESHOLDS)
+    return SequenceScore(row, success_curve(ious, grid), precision_curve(errors, PRECISION_THRESHOLDS), frames,
+                         got_ious)
 
 
 def failed_row(error: str) -> dict[str, Any]:
@@ -79,7 +103,7 @@ def mean_row(rows: Mapping[str, Mapping[str, Any]]) -> dict[str, Any]:
     ok = [r for r in rows.values() if "error" not in r]
     mean: dict[str, Any] = {}
     for name in (*METRIC_NAMES, "fps"):
-        values = [r[name] for r in ok if r[name] is not None and math.isfinite(r[name])]
+        values = [r[name] for r in ok if r.get(name) is not None and math.isfinite(r[name])]
         mean[name] = float(np.mean(values)) if values else None
     failed = [seq for seq, r in rows.items() if "error" in r]
     if failed:
@@ -106,10 +130,11 @@ def score_results(sequences: Sequence[BenchmarkSequence], filters: Sequence[str]
     Returns
     -------
     summary
-        ``{filter: {sequence: {auc, precision20, pascal, center_error, fps,
-        false_lost, missed_loss, confidence_auc, lost_rate}, ..., "mean": {...}}}``;
-        the mean row pools the confidence metrics over the frames of every
-        sequence.
+        ``{filter: {sequence: {auc, precision20, pascal, center_error,
+        norm_precision, fps, false_lost, missed_loss, confidence_auc,
+        lost_rate}, ..., "mean": {...}}}``, and ``ao``, ``sr50``, ``sr75`` on
+        GOT-10k sequences; the mean row pools the confidence metrics and
+        GOT-10k's over the frames of every sequence.
     curves
         ``(filter, sequence) -> (success, precision)`` curves.
     """
@@ -119,6 +144,7 @@ def score_results(sequences: Sequence[BenchmarkSequence], filters: Sequence[str]
     for name in filters:
         rows: dict[str, dict[str, Any]] = {}
         pooled = []
+        got_ious = []
         for sequence in sequences:
             key = (name, sequence.name)
             if key in errors:
@@ -129,7 +155,11 @@ def score_results(sequences: Sequence[BenchmarkSequence], filters: Sequence[str]
             curves[key] = (scored.success, scored.precision)
             if scored.frames is not None:
                 pooled.append(scored.frames)
+            if scored.got10k_ious is not None:
+                got_ious.append(scored.got10k_ious)
         rows["mean"] = mean_row(rows)
+        if got_ious:  # GOT-10k's overall figures pool the frames of every sequence
+            rows["mean"].update(got10k_scores(np.concatenate(got_ious)))
         rows["mean"].update(conf.pooled_metrics(pooled, ok_flag=name.startswith("opencv-")))
         summary[name] = rows
     return summary, curves

@@ -10,7 +10,7 @@ have ``w <= 0`` or ``h <= 0`` are "not annotated" and skipped by every metric.
 from __future__ import annotations
 
 import re
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
@@ -56,6 +56,8 @@ class BenchmarkSequence:
         ``(N,)`` bool: frames the benchmark marks the target fully occluded
         (LaSOT ``full_occlusion.txt``, GOT-10k ``cover.label`` 0); None when
         the layout has no such mark.
+    frame_size
+        ``(width, height)`` of the frames, when the reader checked them.
     """
 
     name: str
@@ -67,6 +69,7 @@ class BenchmarkSequence:
     run_range: tuple[int, int]
     absent: np.ndarray | None = None
     occluded: np.ndarray | None = None
+    frame_size: tuple[int, int] | None = None
 
     def __len__(self) -> int:
         return len(self.files)
@@ -227,8 +230,13 @@ def check_row_count(name: str, ground_truth: np.ndarray, gt_name: str, images: l
                            f"but {folder.name}/ holds {len(images)} images")
 
 
-def check_init_box(sequence: BenchmarkSequence, gt_name: str) -> None:
+def check_init_box(sequence: BenchmarkSequence, gt_name: str) -> tuple[int, int]:
     """Reject a sequence whose frames differ in size or whose init ground-truth box is not (mostly) inside.
+
+    Returns
+    -------
+    tuple of int
+        The frames' ``(width, height)``.
 
     Raises
     ------
@@ -247,6 +255,7 @@ def check_init_box(sequence: BenchmarkSequence, gt_name: str) -> None:
     if not box.is_inside(width, height):
         raise DatasetError(f"sequence {sequence.name}: {gt_name} row {row + 1}: the init box "
                            f"{sequence.ground_truth_box(row)} lies outside the {width}x{height} frame")
+    return width, height
 
 
 def make_sequence(name: str, folder: Path, files: list[Path], ground_truth: np.ndarray, gt_name: str, *,
@@ -259,5 +268,4 @@ def make_sequence(name: str, folder: Path, files: list[Path], ground_truth: np.n
     sequence = BenchmarkSequence(name=name, path=folder.resolve(), files=tuple(files), ground_truth=ground_truth,
                                  origin=origin, layout=layout, run_range=run_range or (0, len(files)),
                                  absent=absent, occluded=occluded)
-    check_init_box(sequence, gt_name)
-    return sequence
+    return replace(sequence, frame_size=check_init_box(sequence, gt_name))
