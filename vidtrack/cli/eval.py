@@ -25,7 +25,9 @@ reason on stderr and the others still run (exit 1).
 Writes OUT/<filter>/<Sequence>.txt (one x,y,w,h line per ground-truth line, in that sequence's own
 convention: OTB folders 1-based, MIL data 0-based; rows not tracked are 0,0,0,0) with a .json run
 record and a .confidence.csv (per-frame confidence and status) beside it, OUT/summary.json,
-OUT/summary.md, OUT/success.png, OUT/precision.png, OUT/attributes.png (success AUC per OTB
+OUT/summary.md, OUT/toolkit/<layout>/<filter>/ (the results in the layout of the benchmark's own
+toolkit: OTB, LaSOT, UAV123 <seq>.txt; GOT-10k <seq>/<seq>_001.txt and <seq>_time.txt, a test-split
+submission when zipped), OUT/success.png, OUT/precision.png, OUT/attributes.png (success AUC per OTB
 attribute, from DATASET_DIR/attr_list.txt or --attributes) and OUT/report.html (everything in one
 self-contained page, with thumbnails of the frames where the best tracker fails).
 Existing results of a matching run (same tracker, sequence, seed, frames and effective options) are
@@ -89,6 +91,7 @@ def main(argv: list[str]) -> int:
     from ..eval.evaluation import run_evaluation
     from ..eval.html_report import write_report
     from ..eval.plots import attribute_plot, write_plots
+    from ..eval.toolkit import write_toolkit_results
     from ..eval.report import format_attribute_table, format_confidence_table, format_table, write_summary
     from ..recipes import registry
 
@@ -148,7 +151,7 @@ def main(argv: list[str]) -> int:
                                 progress=None if args.quiet else progress_bar, on_output=report)
     per_attribute = by_attribute(evaluation.summary, attributes) if attributes else None
     json_path, md_path = write_summary(args.out, evaluation.summary, per_attribute)
-    written = [json_path, md_path]
+    written = [json_path, md_path, *write_toolkit_results(args.out, sequences, filters, evaluation.records)]
     if not args.no_plots:
         written += write_plots(args.out, evaluation.curves, filters, [s.name for s in sequences])[:2]
         if per_attribute and any(per_attribute.values()):

@@ -9,7 +9,7 @@ turn; ``vidtrack eval`` is its command line.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Callable, Mapping
 
@@ -29,12 +29,14 @@ class Evaluation:
     center_error, fps}, ..., "mean": {...}}}`` (failed sequences have
     ``None`` metrics and an ``error``); ``curves`` maps ``(filter,
     sequence)`` to ``(success, precision)`` curves; ``status`` maps it to
-    ``done``, ``reused`` or ``failed``.
+    ``done``, ``reused`` or ``failed``; ``records`` maps each pair that did
+    not fail to its run record.
     """
 
     summary: dict[str, dict[str, dict[str, Any]]]
     curves: dict[tuple[str, str], tuple[np.ndarray, np.ndarray]]
     status: dict[tuple[str, str], str]
+    records: dict[tuple[str, str], dict[str, Any]] = field(default_factory=dict)
 
 
 def make_jobs(sequences: list[BenchmarkSequence], filters: list[str], *, seed: int = 0,
@@ -91,4 +93,4 @@ def run_evaluation(sequences: list[BenchmarkSequence], filters: list[str], out: 
     records = {key: output.record for key, output in outputs.items() if output.status != "failed"}
     errors = {key: output.error or "failed" for key, output in outputs.items() if output.status == "failed"}
     summary, curves = score_results(sequences, filters, out, records, errors)
-    return Evaluation(summary, curves, {key: output.status for key, output in outputs.items()})
+    return Evaluation(summary, curves, {key: output.status for key, output in outputs.items()}, records)
