@@ -7,11 +7,16 @@ OUT    ?= out
 # which must never share an environment with vidtrack's opencv-contrib-python-headless.
 VOT_VENV ?= .venv-vot
 VOT_BIN  := $(VOT_VENV)/bin
+# The got10k toolkit (the reference scores of OTB, UAV123 and GOT-10k) gets a venv of its own too:
+# it is the benchmarks' Python toolkit, kept apart from vidtrack's dependencies.
+GOT10K_VENV ?= .venv-got10k
+GOT10K_BIN  := $(GOT10K_VENV)/bin
 # Every install takes the tested versions from these files (`make constraints` rewrites them).
 CONSTRAINTS     ?= constraints.txt
 VOT_CONSTRAINTS ?= constraints-vot.txt
+GOT10K_CONSTRAINTS ?= constraints-got10k.txt
 
-.PHONY: demo test lint install install-dev vot-env constraints sample clean
+.PHONY: demo test lint install install-dev vot-env got10k-env constraints sample clean
 
 $(BIN)/python:
 	$(PYTHON) -m venv $(VENV)
@@ -31,9 +36,17 @@ $(VOT_VENV)/.installed: $(VOT_CONSTRAINTS)
 	$(VOT_BIN)/python -m pip install --quiet -c $(VOT_CONSTRAINTS) vot-toolkit attributee
 	touch $@
 
+# got10k 0.1.3 imports six without declaring it
+$(GOT10K_VENV)/.installed: $(GOT10K_CONSTRAINTS)
+	$(PYTHON) -m venv $(GOT10K_VENV)
+	$(GOT10K_BIN)/python -m pip install --quiet --upgrade pip
+	$(GOT10K_BIN)/python -m pip install --quiet -c $(GOT10K_CONSTRAINTS) got10k six
+	touch $@
+
 install: $(VENV)/.installed
 install-dev: $(VENV)/.installed-dev
 vot-env: $(VOT_VENV)/.installed
+got10k-env: $(GOT10K_VENV)/.installed
 
 # After adding or upgrading a dependency: install it, run `make test`, then `make constraints`.
 constraints: $(BIN)/python
@@ -41,7 +54,9 @@ constraints: $(BIN)/python
 	   $(BIN)/python -m pip freeze --exclude-editable; } > $(CONSTRAINTS)
 	@if [ -x $(VOT_BIN)/python ]; then { echo "# The VOT toolkit's own venv (make vot-env), tested with vidtrack trax."; \
 	   $(VOT_BIN)/python -m pip freeze; } > $(VOT_CONSTRAINTS); fi
-	@echo "constraints: wrote $(CONSTRAINTS)$$([ -x $(VOT_BIN)/python ] && echo " and $(VOT_CONSTRAINTS)")"
+	@if [ -x $(GOT10K_BIN)/python ]; then { echo "# The got10k toolkit's own venv (make got10k-env), the reference of vidtrack eval's scores."; \
+	   $(GOT10K_BIN)/python -m pip freeze; } > $(GOT10K_CONSTRAINTS); fi
+	@echo "constraints: wrote $(CONSTRAINTS)$$([ -x $(VOT_BIN)/python ] && echo " and $(VOT_CONSTRAINTS)")$$([ -x $(GOT10K_BIN)/python ] && echo " and $(GOT10K_CONSTRAINTS)")"
 
 demo: install
 	@mkdir -p $(OUT)
@@ -55,8 +70,9 @@ lint: install-dev
 	$(BIN)/ruff check vidtrack tests scripts
 	$(BIN)/lint-imports
 
-test: install-dev vot-env lint
-	VIDTRACK_VOT=$(abspath $(VOT_BIN))/vot $(BIN)/python -m pytest $(PYTEST_ARGS)
+test: install-dev vot-env got10k-env lint
+	VIDTRACK_VOT=$(abspath $(VOT_BIN))/vot VIDTRACK_GOT10K=$(abspath $(GOT10K_BIN))/python \
+		$(BIN)/python -m pytest $(PYTEST_ARGS)
 
 sample: install
 	$(BIN)/python scripts/make_sample.py --out data
@@ -72,4 +88,4 @@ browser:
 	  else echo "make: no chromium and not root: the report-rendering test will skip its browser check"; fi
 
 clean:
-	rm -rf $(VENV) $(VOT_VENV) $(OUT) .pytest_cache
+	rm -rf $(VENV) $(VOT_VENV) $(GOT10K_VENV) $(OUT) .pytest_cache

@@ -46,12 +46,12 @@ def _link_frames(frames: list[Path], folder: Path, pattern: str, first: int = 1)
 
 def build_otb(root: Path) -> Path:
     """OTB-100's quirks: a David-like range, two-target Jogging, Human4's .2 file, delimiters, names, cfg.mat."""
-    girl, girl_gt = shared("Girl", 16)
+    girl, girl_gt = shared("Girl", 310)
     jog, jog_gt = shared("Jogging")
     data = root / "otb"
-    # David: images 0295..0310, ground truth for 0300..0310 only (OTB's David is 300..770 of 770 images)
-    _link_frames(girl[:16], data / "David/img", "{:04d}", first=295)
-    (data / "David/groundtruth_rect.txt").write_text(_rows(girl_gt[5:16]))
+    # David: images 0001..0310, ground truth for 0300..0310 only (OTB's David is 300..770 of 770 images)
+    _link_frames(girl, data / "David/img", "{:04d}")
+    (data / "David/groundtruth_rect.txt").write_text(_rows(girl_gt[299:310]))
     # Jogging: two targets, tab-separated
     _link_frames(jog, data / "Jogging/img", "{:04d}")
     (data / "Jogging/groundtruth_rect.1.txt").write_text(_rows(jog_gt, "\t"))
@@ -107,7 +107,8 @@ def build_got10k(root: Path) -> Path:
         (folder / "groundtruth.txt").write_text(_rows(boxes))
         (folder / "absence.label").write_text("".join(f"{a}\n" for a in absence))
         (folder / "cover.label").write_text("".join(f"{0 if a else 8}\n" for a in absence))
-        (folder / "meta_info.ini").write_text("[METAINFO]\nobject_class: person\n")
+        (folder / "cut_by_image.label").write_text("0\n" * FRAMES)
+        (folder / "meta_info.ini").write_text("[METAINFO]\nobject_class: person\nresolution: (128, 96)\n")
     (data / "list.txt").write_text("\n".join(names) + "\n")
     test = root / "got10k" / "test" / "GOT-10k_Test_000001"
     _link_frames(girl, test, "{:08d}")
