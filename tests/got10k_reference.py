@@ -2,8 +2,9 @@
 
 Usage: ``python got10k_reference.py KIND DATASET_ROOT RESULTS_ROOT TRACKER`` with KIND ``otb``,
 ``got10k`` or ``uav123``.  For ``uav123`` the miniature's sequences are not in the toolkit's table
-of frame ranges, so its dataset reader's fields are set here (each sequence its whole frame
-folder); the experiment's scoring code runs unchanged.
+of frame ranges, so its dataset reader's fields are set here (a split sequence such as car16_1
+takes the toolkit's own range, any other its whole frame folder); the experiment's scoring
+code runs unchanged.
 """
 
 import json
@@ -49,16 +50,25 @@ def main(kind, root, results, tracker):
     elif kind == "got10k":
         experiment = ExperimentGOT10k(root, subset="val", result_dir=results, report_dir=reports)
     else:  # the toolkit's reader needs its table of frame ranges: set its fields for the miniature
+        import got10k.datasets
         from got10k.datasets import UAV123
 
         dataset = UAV123.__new__(UAV123)
         dataset.root_dir, dataset.version = root, "UAV123"
+        with open(os.path.join(os.path.dirname(got10k.datasets.__file__), "uav123.json")) as f:
+            published = json.load(f)["UAV123"]
         anno = os.path.join(root, "anno", "UAV123")
         dataset.seq_names = sorted(f[:-4] for f in os.listdir(anno) if f.endswith(".txt"))
         dataset.anno_files = [os.path.join(anno, n + ".txt") for n in dataset.seq_names]
-        dataset.seq_dirs = [os.path.join(root, "data_seq", "UAV123", n) for n in dataset.seq_names]
-        dataset.seq_metas = {"UAV123": {n: {"start_frame": 1, "end_frame": len(os.listdir(d)), "folder_name": n}
-                                        for n, d in zip(dataset.seq_names, dataset.seq_dirs)}}
+        metas = {}
+        for name in dataset.seq_names:  # split sequences: the toolkit's own ranges; others: the whole folder
+            if name in published and published[name]["folder_name"] != name:
+                metas[name] = published[name]
+            else:
+                frames = len(os.listdir(os.path.join(root, "data_seq", "UAV123", name)))
+                metas[name] = {"start_frame": 1, "end_frame": frames, "folder_name": name}
+        dataset.seq_metas = {"UAV123": metas}
+        dataset.seq_dirs = [os.path.join(root, "data_seq", "UAV123", metas[n]["folder_name"]) for n in dataset.seq_names]
         experiment = ExperimentUAV123.__new__(ExperimentUAV123)
         experiment.dataset = dataset
         experiment.result_dir = os.path.join(results, "UAV123")

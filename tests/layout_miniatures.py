@@ -118,7 +118,7 @@ def build_got10k(root: Path) -> Path:
 
 
 def build_uav123(root: Path) -> Path:
-    """``Dataset_UAV123/UAV123`` with ``data_seq/`` and ``anno/`` and NaN rows while out of view."""
+    """``Dataset_UAV123/UAV123`` with ``data_seq/`` and ``anno/``, NaN rows while out of view, a split sequence."""
     girl, girl_gt = shared("Girl")
     base = root / "Dataset_UAV123" / "UAV123"
     _link_frames(girl, base / "data_seq/UAV123/person1", "{:06d}")
@@ -126,6 +126,10 @@ def build_uav123(root: Path) -> Path:
     boxes[4:6] = np.nan
     (base / "anno/UAV123/att").mkdir(parents=True)
     (base / "anno/UAV123/person1.txt").write_text(_rows(boxes).replace("nan", "NaN"))
+    # car16_1: frames 1..415 of the folder car16 (which holds more)
+    girl, girl_gt = shared("Girl", 420)
+    _link_frames(girl, base / "data_seq/UAV123/car16", "{:06d}")
+    (base / "anno/UAV123/car16_1.txt").write_text(_rows(girl_gt[:415]))
     return root / "Dataset_UAV123"
 
 

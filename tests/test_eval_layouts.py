@@ -72,7 +72,9 @@ def test_got10k_val_and_test(tmp_path):
 def test_uav123_nan_rows(tmp_path):
     root = build_uav123(tmp_path)
     assert detect_layout(root) == "uav123" and detect_layout(root / "UAV123") == "uav123"
-    (seq,) = load_dataset(root)
+    split, seq = load_dataset(root)
+    assert split.name == "car16_1" and len(split) == 415 and split.files[-1].name == "000415.jpg"
+    assert split.path.name == "car16"
     assert seq.name == "person1" and seq.origin == 1 and len(seq) == FRAMES
     assert np.flatnonzero(seq.absent).tolist() == [4, 5]
     assert np.flatnonzero(~seq.annotated).tolist() == [4, 5]
