@@ -56,6 +56,8 @@ def test_got10k_ao_sr_over_present_frames_pooled_in_the_mean(tmp_path, capsys):
     assert _run(data, out) == 0
     table = capsys.readouterr().out
     assert " AO |" in table and "SR0.75" in table and "NormPrec" in table
+    page = (out / "report.html").read_text()
+    assert all(f"<th>{title}</th>" in page for title in ("AO", "SR0.5", "SR0.75", "NormPrec"))
     summary = json.loads((out / "summary.json").read_text())["kalman-cv"]
     pooled = []
     for seq in load_dataset(data):
@@ -82,6 +84,8 @@ def test_lasot_normalised_precision_in_the_summary_and_no_got10k_columns(tmp_pat
     assert _run(data, out, "--max-frames", "8") == 0
     table = capsys.readouterr().out
     assert "NormPrec" in table and " AO |" not in table
+    page = (out / "report.html").read_text()
+    assert "<th>NormPrec</th>" in page and "<th>AO</th>" not in page
     summary = json.loads((out / "summary.json").read_text())["kalman-cv"]
     seq = load_dataset(data)[0]
     result = read_boxes(out / "kalman-cv" / f"{seq.name}.txt")[:8]
