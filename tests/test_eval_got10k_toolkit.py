@@ -14,6 +14,7 @@ import shutil
 import subprocess
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 from layout_miniatures import SEQUENCES, build_got10k, build_otb, build_uav123
@@ -30,10 +31,20 @@ pytestmark = [
 ]
 
 
-def _evaluate(data, out):
-    code = vidtrack_main(["eval", str(data), "--filter", TRACKER, "--out", str(out), "--in-process",
-                          "--no-plots", "-q"])
-    assert code == 0
+def _evaluate(data, out, shifted=False):
+    """Evaluate; ``shifted``: then move every tracked box but the first by 0..45 px and score again.
+
+    The second run reuses the (now shifted) result files, so the scores spread over the
+    precision and overlap thresholds rather than a tracker's near-perfect run on a miniature.
+    """
+    args = ["eval", str(data), "--filter", TRACKER, "--out", str(out), "--in-process", "--no-plots", "-q"]
+    assert vidtrack_main(args) == 0
+    if shifted:
+        for path in (out / TRACKER).glob("*.txt"):
+            boxes = np.loadtxt(path, delimiter=",", ndmin=2)
+            boxes[1:, 0] += (7 * np.arange(1, len(boxes))) % 46
+            np.savetxt(path, boxes, fmt="%.3f", delimiter=",")
+        assert vidtrack_main(args) == 0
     return json.loads((out / "summary.json").read_text())[TRACKER]
 
 
@@ -58,28 +69,39 @@ def _agree_otb_like(ours, theirs):
         assert row["auc"] == pytest.approx(reference["success_score"], abs=1e-6), name
         assert row["precision20"] == pytest.approx(reference["precision_score"], abs=1e-6), name
         assert row["pascal"] == pytest.approx(reference["success_rate"], abs=1e-6), name
+    return ours["mean"]
 
 
-def test_otb_agrees_with_the_got10k_toolkit(tmp_path):
+SHIFTED = pytest.mark.parametrize("shifted", [False, True], ids=["tracked", "shifted"])
+
+
+@SHIFTED
+def test_otb_agrees_with_the_got10k_toolkit(tmp_path, shifted):
     data = build_otb(tmp_path)
-    ours = _evaluate(data, tmp_path / "out")
+    ours = _evaluate(data, tmp_path / "out", shifted)
     results = tmp_path / "got10k-results" / "OTBtb100" / TRACKER
     results.mkdir(parents=True)
     for path in (tmp_path / "out" / "toolkit" / "otb" / TRACKER).iterdir():
         shutil.copyfile(path, results / f"{_toolkit_name(path.stem)}.txt")
-    _agree_otb_like(ours, _reference("otb", data, tmp_path / "got10k-results"))
+    mean = _agree_otb_like(ours, _reference("otb", data, tmp_path / "got10k-results"))
+    if shifted:
+        assert 0 < mean["precision20"] < 1 and 0 < mean["pascal"] < 1
 
 
-def test_uav123_agrees_with_the_got10k_toolkit(tmp_path):
+@SHIFTED
+def test_uav123_agrees_with_the_got10k_toolkit(tmp_path, shifted):
     root = build_uav123(tmp_path) / "UAV123"
-    ours = _evaluate(root, tmp_path / "out")
+    ours = _evaluate(root, tmp_path / "out", shifted)
     shutil.copytree(tmp_path / "out" / "toolkit" / "uav123" / TRACKER, tmp_path / "got10k-results" / "UAV123" / TRACKER)
-    _agree_otb_like(ours, _reference("uav123", root, tmp_path / "got10k-results"))
+    mean = _agree_otb_like(ours, _reference("uav123", root, tmp_path / "got10k-results"))
+    if shifted:
+        assert 0 < mean["precision20"] < 1 and 0 < mean["pascal"] < 1
 
 
-def test_got10k_val_agrees_with_the_got10k_toolkit(tmp_path):
+@SHIFTED
+def test_got10k_val_agrees_with_the_got10k_toolkit(tmp_path, shifted):
     data = build_got10k(tmp_path)
-    ours = _evaluate(data, tmp_path / "out")
+    ours = _evaluate(data, tmp_path / "out", shifted)
     shutil.copytree(tmp_path / "out" / "toolkit" / "got10k" / TRACKER,
                     tmp_path / "got10k-results" / "GOT-10k" / TRACKER)
     theirs = _reference("got10k", data.parent, tmp_path / "got10k-results")
@@ -87,3 +109,5 @@ def test_got10k_val_agrees_with_the_got10k_toolkit(tmp_path):
         reference = theirs["overall"] if name == "mean" else theirs["seq_wise"][name]
         assert row["ao"] == pytest.approx(reference["ao"], abs=1e-6), name
         assert row["sr50"] == pytest.approx(reference["sr"], abs=1e-6), name
+    if shifted:
+        assert 0 < ours["mean"]["sr50"] < 1
