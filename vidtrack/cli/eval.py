@@ -39,8 +39,9 @@ tracker listed; one a listed tracker does not take is an error naming that track
 
 def build_parser() -> OneLineParser:
     parser = OneLineParser(prog="vidtrack eval", epilog=EPILOG,
-                           description="Evaluate trackers on benchmark sequences (OTB, MIL, LaSOT, GOT-10k, UAV123, VOT): "
-                                       "OTB success AUC, precision@20, PASCAL score, centre error, fps.")
+                           description="Evaluate trackers on benchmark sequences (OTB, MIL, LaSOT, GOT-10k, UAV123, "
+                                       "VOT): OTB success AUC, precision@20, normalised precision, PASCAL score, "
+                                       "centre error, GOT-10k's AO, SR0.5 and SR0.75, fps.")
     parser.add_argument("dataset", metavar="DATASET_DIR", nargs="?",
                         help="a benchmark folder as downloaded (OTB, MIL, LaSOT, GOT-10k, UAV123, VOT), "
                              "or one sequence folder")
