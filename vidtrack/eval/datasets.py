@@ -40,7 +40,7 @@ __all__ = ["LAYOUTS", "BenchmarkSequence", "DatasetReading", "annotated_rows", "
            "read_dataset", "read_names", "sequence_entries"]
 
 #: Layout name -> its reader module, in the order :func:`detect_layout` tries them.
-LAYOUTS = {"uav123": uav123, "lasot": lasot, "got10k": got10k, "vot": vot, "otb": otb}
+LAYOUTS = {"uav123": uav123, "got10k": got10k, "lasot": lasot, "vot": vot, "otb": otb}
 
 load_sequence = otb.load_sequence
 
