@@ -2,11 +2,12 @@
 
 from __future__ import annotations
 
+import signal
 from dataclasses import dataclass
 from typing import Callable, Iterable, Sequence
 
 from .api import VidtrackTracker, track_frames
-from .sinks.base import Sink, close_and_remove
+from .sinks.base import Sink, close_and_remove, uninterrupted
 from .tracker import Tracker
 from .types import Box, Frame, TrackState
 
@@ -17,14 +18,16 @@ class RunResult:
 
     ``frames`` tracked (init frame included), ``lost_frames`` with status
     lost, ``track_seconds`` spent in the tracker (decoding and sinks
-    excluded), ``interrupted`` by Ctrl-C, ``decode_error`` when the source
-    stopped early, ``last_state`` the final state.
+    excluded), ``interrupted`` by Ctrl-C or a stopping signal (``signum``
+    its number), ``decode_error`` when the source stopped early,
+    ``last_state`` the final state.
     """
 
     frames: int = 0
     lost_frames: int = 0
     track_seconds: float = 0.0
     interrupted: bool = False
+    signum: int | None = None
     decode_error: str | None = None
     last_state: TrackState | None = None
 
@@ -39,7 +42,8 @@ def run_tracker(tracker: Tracker, frames: Iterable[Frame], init_box: Box, sinks:
                 validate_box: Callable[[Frame, Box], None] | None = None) -> RunResult:
     """Track ``init_box`` through ``frames``, writing every state to ``sinks``.
 
-    The sinks are always closed, also after an exception or Ctrl-C (which is
+    The sinks are always closed, also after an exception or Ctrl-C (a
+    KeyboardInterrupt, also one a stopping signal raises with a ``signum``:
     swallowed and reported as ``interrupted``), so every frame already tracked
     is on disk.  ``validate_box(first_frame, box)`` may raise to reject the
     init box once the frame size is known.  The loop is the Python API's
@@ -52,15 +56,17 @@ def run_tracker(tracker: Tracker, frames: Iterable[Frame], init_box: Box, sinks:
     try:
         for frame, state in track_frames(runner, frames, init_box, max_frames=max_frames, validate_box=validate_box):
             result.track_seconds = runner.seconds
-            for sink in sinks:
-                sink.write(frame, state)
-            result.frames += 1
-            result.lost_frames += state.status == "lost"
-            result.last_state = state
+            with uninterrupted():   # a stopping signal waits till every sink holds the frame
+                for sink in sinks:
+                    sink.write(frame, state)
+                result.frames += 1
+                result.lost_frames += state.status == "lost"
+                result.last_state = state
             if on_state is not None:
                 on_state(state)
-    except KeyboardInterrupt:
+    except KeyboardInterrupt as exc:
         result.interrupted = True
+        result.signum = int(getattr(exc, "signum", signal.SIGINT))
     except BaseException:
         if result.frames == 0:  # bad input found at the first frame: leave no empty output behind
             close_and_remove(sinks)

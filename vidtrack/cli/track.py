@@ -3,20 +3,22 @@
 Writes any of: the annotated video (``-o``), one box per frame (``--boxes``),
 a per-frame CSV log (``--log``) and a Rerun recording (``--rerun``).  Exit 0;
 2 on bad input (one line) or when decoding stopped part way (the frames
-tracked are kept); 130 after Ctrl-C (every frame tracked is kept).
+tracked are kept); 128 + N after a stopping signal N: 130 for Ctrl-C
+(SIGINT), 143 for SIGTERM, every output finished with every frame tracked.
 """
 
 from __future__ import annotations
 
 import argparse
+import signal
 import sys
 from typing import Sequence
 
 from ..errors import UsageError, VidtrackError
 from ..version import __version__
-from .common import (EXIT_INTERRUPTED, EXIT_OK, EXIT_USAGE, SUBCOMMANDS, OneLineParser, add_filter_argument,
+from .common import (EXIT_OK, EXIT_USAGE, SUBCOMMANDS, OneLineParser, add_filter_argument,
                      add_settings_arguments, check_box_in_frame, check_settings, default_filter, error_line,
-                     parse_init_box, progress_bar, say, tracker_settings)
+                     interrupted_exit_code, parse_init_box, progress_bar, say, tracker_settings)
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -98,8 +100,9 @@ def main(argv: Sequence[str]) -> int:
         say(f"{name} tracked {result.frames} frames at {result.fps:.1f} fps, lost in {result.lost_frames}"
             + (f"; wrote {', '.join(written)}" if written else ""))
     if result.interrupted:
-        say(f"interrupted after {result.frames} frames; outputs keep every tracked frame")
-        return EXIT_INTERRUPTED
+        name = signal.Signals(result.signum or signal.SIGINT).name
+        say(f"interrupted after {result.frames} frames ({name}); outputs keep every tracked frame")
+        return interrupted_exit_code(result.signum)
     if result.decode_error:
         print(error_line(f"{result.decode_error}; kept the {result.frames} frames tracked"), file=sys.stderr)
         return EXIT_USAGE
