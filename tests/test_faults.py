@@ -125,3 +125,145 @@ def test_sigterm_of_eval_keeps_finished_results_and_ends_its_workers(tmp_path, j
     assert len(read_boxes(out / "kalman-cv" / "Alpha.txt")) == 40
     assert not (out / "kalman-cv" / "Beta.json").exists() and not (out / "summary.json").exists()
     assert not list(out.rglob("*.part"))
+
+
+def _jpeg_frames(folder: Path, count: int) -> Path:
+    import cv2
+
+    from hard_stop_helpers import square_frame
+
+    folder.mkdir(parents=True)
+    for index in range(count):
+        cv2.imwrite(str(folder / f"{index:04d}.jpg"), square_frame(index), [cv2.IMWRITE_JPEG_QUALITY, 95])
+    return folder
+
+
+def test_undecodable_frames_in_a_folder_are_skipped_and_predicted_through(tmp_path):
+    import shutil
+
+    clean = _jpeg_frames(tmp_path / "clean", 300)
+    broken = tmp_path / "broken copy ü"
+    shutil.copytree(clean, broken)
+    (broken / "0120.jpg").write_bytes(b"\x00garbage" * 100)                     # not a JPEG at all
+    data = (broken / "0200.jpg").read_bytes()
+    (broken / "0200.jpg").write_bytes(data[: len(data) // 2])                   # a copy cut short
+    x, y = square_position(0)
+    runs = {}
+    for name, folder in (("clean", clean), ("broken", broken)):
+        boxes, log = tmp_path / f"{name}.txt", tmp_path / f"{name}.csv"
+        done = subprocess.run([sys.executable, "-m", "vidtrack", str(folder), "--init-box", f"{x},{y},16,16",
+                               "--filter", "kalman-cv", "--boxes", str(boxes), "--log", str(log)],
+                              cwd=tmp_path, capture_output=True, text=True, timeout=300)
+        runs[name] = (done, read_boxes(boxes), log.read_text().splitlines()[1:])
+    done, boxes, log = runs["broken"]
+    assert done.returncode == 0, done.stderr
+    assert "Traceback" not in done.stderr
+    warnings_ = [line for line in done.stderr.splitlines() if "warning" in line]
+    assert len(warnings_) == 2, done.stderr
+    assert "0120.jpg" in warnings_[0] and "frame 120 skipped" in warnings_[0]
+    assert "0200.jpg" in warnings_[1] and "truncated" in warnings_[1] and "frame 200 skipped" in warnings_[1]
+    assert "2 undecodable skipped" in done.stderr                                # counted in the summary
+    assert len(boxes) == 300 and [int(row.split(",")[0]) for row in log] == list(range(300))
+    clean_boxes = runs["clean"][1]
+    assert boxes[:120].tolist() == clean_boxes[:120].tolist()                    # the same run up to the gap
+    assert boxes[120].tolist() != clean_boxes[120].tolist()                      # a prediction, not a measurement
+    tx, ty = square_position(299)                                                # tracking goes on after the gaps
+    assert abs(boxes[-1][0] - tx) < 4 and abs(boxes[-1][1] - ty) < 4, boxes[-1]
+
+
+def test_a_broken_first_frame_is_still_bad_input(tmp_path):
+    folder = _jpeg_frames(tmp_path / "frames", 5)
+    (folder / "0000.jpg").write_bytes(b"garbage")
+    done = subprocess.run([sys.executable, "-m", "vidtrack", str(folder), "--init-box", "1,1,16,16",
+                           "--filter", "kalman-cv", "-q", "--boxes", str(tmp_path / "b.txt")],
+                          cwd=tmp_path, capture_output=True, text=True, timeout=120)
+    assert done.returncode == 2
+    assert done.stderr.strip().splitlines() == [f"vidtrack: error: cannot decode image {folder / '0000.jpg'}"]
+    assert not (tmp_path / "b.txt").exists()
+
+
+def test_eval_predicts_through_an_undecodable_frame_and_records_it(tmp_path):
+    import shutil
+
+    data = tmp_path / "data"
+    images = _jpeg_frames(data / "Square" / "img", 80)
+    rows = [f"{x + 1},{y + 1},16,16" for x, y in (square_position(i) for i in range(80))]
+    (images.parent / "groundtruth_rect.txt").write_text("\n".join(rows) + "\n")
+    clean = tmp_path / "clean"
+    shutil.copytree(data, clean)
+    (images / "0040.jpg").write_bytes(b"garbage")
+    outs = {}
+    for name, dataset in (("broken", data), ("clean", clean)):
+        outs[name] = tmp_path / f"out-{name}"
+        done = subprocess.run([sys.executable, "-m", "vidtrack", "eval", str(dataset), "--filter", "kalman-cv",
+                               "--no-plots", "-q", "--out", str(outs[name])],
+                              cwd=tmp_path, capture_output=True, text=True, timeout=300)
+        assert done.returncode == 0, done.stderr
+        assert "Traceback" not in done.stderr
+    record = json.loads((outs["broken"] / "kalman-cv" / "Square.json").read_text())
+    assert [s["row"] for s in record["skipped"]] == [40] and "0040.jpg" in record["skipped"][0]["reason"]
+    assert "skipped" not in json.loads((outs["clean"] / "kalman-cv" / "Square.json").read_text())
+    broken = read_boxes(outs["broken"] / "kalman-cv" / "Square.txt")
+    clean_boxes = read_boxes(outs["clean"] / "kalman-cv" / "Square.txt")
+    assert len(broken) == 80 and broken[:40].tolist() == clean_boxes[:40].tolist()
+
+
+def _mkv(path: Path, count: int) -> bytes:
+    """The moving square as H.264 in Matroska (a keyframe every 10 frames); its bytes."""
+    from hard_stop_helpers import square_frame
+
+    from vidtrack.sinks.h264 import H264Writer
+
+    writer = H264Writer(path, fps=30.0, batch=10)
+    for index in range(count):
+        writer.write(square_frame(index))
+    writer.close()
+    return path.read_bytes()
+
+
+def _track(video: Path, boxes: Path, cwd: Path) -> subprocess.CompletedProcess:
+    x, y = square_position(0)
+    return subprocess.run([sys.executable, "-m", "vidtrack", str(video), "--init-box", f"{x},{y},16,16",
+                           "--filter", "kalman-cv", "-q", "--boxes", str(boxes)],
+                          cwd=cwd, capture_output=True, text=True, timeout=300)
+
+
+def test_a_video_with_garbage_in_the_middle_resynchronises_and_keeps_frame_indices(tmp_path):
+    import random
+
+    data = _mkv(tmp_path / "whole.mkv", 300)
+    middle = len(data) // 2
+    garbage = random.Random(0).randbytes(3000)
+    broken = tmp_path / "garbage in the middle.mkv"
+    broken.write_bytes(data[:middle] + garbage + data[middle:])
+    done = _track(broken, tmp_path / "b.txt", tmp_path)
+    assert done.returncode == 0, done.stderr
+    lines = [line for line in done.stderr.splitlines() if "libav" not in line and not line.startswith("[")]
+    assert len(lines) == 1, done.stderr
+    first, last = map(int, re.search(r"frames (\d+)-(\d+) did not decode", lines[0]).groups())
+    assert 0 < first <= last < 299
+    boxes = read_boxes(tmp_path / "b.txt")
+    assert len(boxes) == 300                                # one box per frame of the video, the gap predicted
+
+    from vidtrack.sources import VideoSource
+
+    clean = [frame.image for frame in VideoSource(tmp_path / "whole.mkv")]
+    source = VideoSource(broken)
+    frames = list(source)
+    assert [frame.index for frame in frames] == list(range(300))
+    assert source.missing == set(range(first, last + 1))
+    for frame in frames:   # every decoded frame at its own index (FFmpeg conceals the damage in the one before)
+        if frame.index not in source.missing and frame.index != first - 1:
+            assert abs(frame.image.astype(int) - clean[frame.index]).mean() < 1.0, frame.index
+
+
+def test_a_video_cut_short_keeps_every_tracked_frame_and_warns_once(tmp_path):
+    data = _mkv(tmp_path / "whole.mkv", 300)
+    cut = tmp_path / "cut.mkv"
+    cut.write_bytes(data[: len(data) // 2])
+    done = _track(cut, tmp_path / "b.txt", tmp_path)
+    assert done.returncode == 0, done.stderr
+    lines = [line for line in done.stderr.splitlines() if line.startswith("vidtrack")]
+    assert len(lines) == 1 and "warning: decoding stopped at frame" in lines[0], done.stderr
+    kept = int(re.search(r"kept the (\d+) frames", lines[0]).group(1))
+    assert 50 < kept < 300 and len(read_boxes(tmp_path / "b.txt")) == kept

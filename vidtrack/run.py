@@ -3,12 +3,13 @@
 from __future__ import annotations
 
 import signal
-from dataclasses import dataclass
+import time
+from dataclasses import dataclass, field
 from typing import Callable, Iterable, Sequence
 
 from .api import VidtrackTracker, track_frames
 from .sinks.base import Sink, close_and_remove, uninterrupted
-from .tracker import Tracker
+from .tracker import Tracker, make_state
 from .types import Box, Frame, TrackState
 
 
@@ -20,6 +21,8 @@ class RunResult:
     lost, ``track_seconds`` spent in the tracker (decoding and sinks
     excluded), ``interrupted`` by Ctrl-C or a stopping signal (``signum``
     its number), ``decode_error`` when the source stopped early,
+    ``skipped`` the source's frames that did not decode (the tracker
+    predicted through them: :class:`~vidtrack.sources.SkippedFrame`),
     ``last_state`` the final state.
     """
 
@@ -29,12 +32,35 @@ class RunResult:
     interrupted: bool = False
     signum: int | None = None
     decode_error: str | None = None
+    skipped: list = field(default_factory=list)
     last_state: TrackState | None = None
 
     @property
     def fps(self) -> float:
         """Tracker frames per second (decoding and writing excluded)."""
         return self.frames / self.track_seconds if self.track_seconds > 0 else float("nan")
+
+
+class PredictingThroughGaps(VidtrackTracker):
+    """A :class:`~vidtrack.api.VidtrackTracker` that only predicts on the frames its source could not decode.
+
+    On a frame whose index is in the source's ``missing`` set the filter
+    predicts and is updated with no measurement (``update(None)``, which
+    every filter takes); the measurer neither looks at it nor learns from it.
+    """
+
+    def __init__(self, tracker: Tracker, source: object) -> None:
+        super().__init__(tracker)
+        self.source = source
+
+    def step_frame(self, frame: Frame) -> TrackState:
+        if frame.index not in getattr(self.source, "missing", ()):
+            return super().step_frame(frame)
+        start = time.perf_counter()
+        prior = self.tracker.filter.predict()
+        state = make_state(frame.index, prior, None, self.tracker.filter.update(None))
+        self.seconds += time.perf_counter() - start
+        return self._keep(frame, state)
 
 
 def run_tracker(tracker: Tracker, frames: Iterable[Frame], init_box: Box, sinks: Sequence[Sink] = (), *,
@@ -49,10 +75,12 @@ def run_tracker(tracker: Tracker, frames: Iterable[Frame], init_box: Box, sinks:
     init box once the frame size is known.  The loop is the Python API's
     (:func:`vidtrack.api.track_frames`), so both give the same boxes.  When
     anything raises before the first frame is written, the sinks' files are
-    removed: bad input leaves no empty output behind.
+    removed: bad input leaves no empty output behind.  A frame the source
+    lists as ``missing`` (it did not decode) is predicted through
+    (:class:`PredictingThroughGaps`), so every sink still gets one state per frame.
     """
     result = RunResult()
-    runner = VidtrackTracker(tracker)
+    runner = PredictingThroughGaps(tracker, frames)
     try:
         for frame, state in track_frames(runner, frames, init_box, max_frames=max_frames, validate_box=validate_box):
             result.track_seconds = runner.seconds
@@ -75,4 +103,5 @@ def run_tracker(tracker: Tracker, frames: Iterable[Frame], init_box: Box, sinks:
         for sink in sinks:
             sink.close()
     result.decode_error = getattr(frames, "decode_error", None)
+    result.skipped = list(getattr(frames, "skipped", ()))
     return result
