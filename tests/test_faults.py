@@ -267,3 +267,66 @@ def test_a_video_cut_short_keeps_every_tracked_frame_and_warns_once(tmp_path):
     assert len(lines) == 1 and "warning: decoding stopped at frame" in lines[0], done.stderr
     kept = int(re.search(r"kept the (\d+) frames", lines[0]).group(1))
     assert 50 < kept < 300 and len(read_boxes(tmp_path / "b.txt")) == kept
+
+
+@pytest.fixture
+def small_disk(tmp_path):
+    """A 64 KB tmpfs folder (mounted for the test: needs root, as on this project's machines and CI)."""
+    import os
+    import shutil
+
+    if os.geteuid() != 0 or shutil.which("mount") is None:
+        pytest.skip("mounting a small tmpfs needs root and mount(8)")
+    folder = tmp_path / "small disk"
+    folder.mkdir()
+    mounted = subprocess.run(["mount", "-t", "tmpfs", "-o", "size=64k", "tmpfs", str(folder)],
+                             capture_output=True, text=True)
+    if mounted.returncode != 0:
+        pytest.skip(f"cannot mount a tmpfs here: {mounted.stderr.strip()}")
+    try:
+        yield folder
+    finally:
+        subprocess.run(["umount", "-l", str(folder)], check=False)
+
+
+def test_a_full_disk_while_tracking_is_one_line_exit_1_and_every_file_stays_valid(tmp_path, small_disk):
+    import csv
+
+    frames = write_frames(tmp_path / "img", 3000)
+    x, y = square_position(0)
+    out = {name: small_disk / name for name in ("b.txt", "log.csv", "out.mp4")}
+    done = subprocess.run([sys.executable, "-m", "vidtrack", str(frames), "--init-box", f"{x},{y},16,16",
+                           "--filter", "kalman-cv", "-q", "--flush-every", "10", "--boxes", str(out["b.txt"]),
+                           "--log", str(out["log.csv"]), "-o", str(out["out.mp4"])],
+                          cwd=tmp_path, capture_output=True, text=True, timeout=300)
+    assert done.returncode == 1, done.stderr
+    lines = done.stderr.strip().splitlines()
+    assert len(lines) == 1 and "No space left on device" in lines[0] and "Traceback" not in done.stderr, done.stderr
+    written = int(re.search(r"keep the (\d+) frames", lines[0]).group(1))
+    assert 0 < written < 3000
+    boxes = read_boxes(out["b.txt"])                                   # every line complete
+    with open(out["log.csv"], newline="") as file:
+        rows = list(csv.reader(file))
+    assert rows[0] == ["frame", "x", "y", "w", "h", "confidence", "status"]
+    assert all(len(row) == 7 for row in rows[1:])
+    assert [int(row[0]) for row in rows[1:]] == list(range(len(rows) - 1))
+    assert written <= len(boxes) <= written + 1 and written <= len(rows) - 1 <= written + 1
+    assert count_frames(out["out.mp4"]) <= written + 1                 # PyAV reads what the video holds
+
+
+def test_a_full_disk_in_eval_keeps_finished_results_and_is_exit_1(tmp_path, small_disk):
+    data = tmp_path / "data"
+    for name, count in (("Alpha", 30), ("Beta", 3000)):
+        folder = write_frames(data / name / "img", count)
+        rows = [f"{x + 1},{y + 1},16,16" for x, y in (square_position(i) for i in range(count))]
+        (folder.parent / "groundtruth_rect.txt").write_text("\n".join(rows) + "\n")
+    done = subprocess.run([sys.executable, "-m", "vidtrack", "eval", str(data), "--filter", "kalman-cv",
+                           "--no-plots", "-q", "--out", str(small_disk)],
+                          cwd=tmp_path, capture_output=True, text=True, timeout=300)
+    assert done.returncode == 1, done.stderr
+    lines = done.stderr.strip().splitlines()
+    assert len(lines) == 1 and "No space left on device" in lines[0] and "Traceback" not in done.stderr, done.stderr
+    record = json.loads((small_disk / "kalman-cv" / "Alpha.json").read_text())   # the finished result, whole
+    assert record["sequence"] == "Alpha" and len(read_boxes(small_disk / "kalman-cv" / "Alpha.txt")) == 30
+    assert not (small_disk / "kalman-cv" / "Beta.json").exists()
+    assert not list(small_disk.rglob("*.part"))

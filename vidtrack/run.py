@@ -8,6 +8,7 @@ from dataclasses import dataclass, field
 from typing import Callable, Iterable, Sequence
 
 from .api import VidtrackTracker, track_frames
+from .errors import OutputError
 from .sinks.base import Sink, close_and_remove, uninterrupted
 from .tracker import Tracker, make_state
 from .types import Box, Frame, TrackState
@@ -21,7 +22,9 @@ class RunResult:
     lost, ``track_seconds`` spent in the tracker (decoding and sinks
     excluded), ``interrupted`` by Ctrl-C or a stopping signal (``signum``
     its number), ``decode_error`` when the source stopped early,
-    ``skipped`` the source's frames that did not decode (the tracker
+    ``output_error`` when an output could not be written part-way (a full
+    disk: the run stopped there, every output keeps the frames written
+    before), ``skipped`` the source's frames that did not decode (the tracker
     predicted through them: :class:`~vidtrack.sources.SkippedFrame`),
     ``last_state`` the final state.
     """
@@ -32,6 +35,7 @@ class RunResult:
     interrupted: bool = False
     signum: int | None = None
     decode_error: str | None = None
+    output_error: OutputError | None = None
     skipped: list = field(default_factory=list)
     last_state: TrackState | None = None
 
@@ -75,7 +79,9 @@ def run_tracker(tracker: Tracker, frames: Iterable[Frame], init_box: Box, sinks:
     init box once the frame size is known.  The loop is the Python API's
     (:func:`vidtrack.api.track_frames`), so both give the same boxes.  When
     anything raises before the first frame is written, the sinks' files are
-    removed: bad input leaves no empty output behind.  A frame the source
+    removed: bad input leaves no empty output behind.  An output that fails
+    part-way (:class:`~vidtrack.errors.OutputError`, a full disk) ends the
+    run: ``output_error`` says why, every sink is closed.  A frame the source
     lists as ``missing`` (it did not decode) is predicted through
     (:class:`PredictingThroughGaps`), so every sink still gets one state per frame.
     """
@@ -95,13 +101,21 @@ def run_tracker(tracker: Tracker, frames: Iterable[Frame], init_box: Box, sinks:
     except KeyboardInterrupt as exc:
         result.interrupted = True
         result.signum = int(getattr(exc, "signum", signal.SIGINT))
+    except OutputError as exc:
+        if result.frames == 0:
+            close_and_remove(sinks, errors=False)
+            raise
+        result.output_error = exc   # part-way (a full disk): stop here, keep what is written
     except BaseException:
         if result.frames == 0:  # bad input found at the first frame: leave no empty output behind
-            close_and_remove(sinks)
+            close_and_remove(sinks, errors=False)
         raise
     finally:
         for sink in sinks:
-            sink.close()
+            try:
+                sink.close()
+            except OutputError as exc:   # closing can fail on a full disk too: the first failure is reported
+                result.output_error = result.output_error or exc
     result.decode_error = getattr(frames, "decode_error", None)
     result.skipped = list(getattr(frames, "skipped", ()))
     return result

@@ -17,7 +17,8 @@ import sys
 from typing import Sequence
 
 from ..errors import UsageError, VidtrackError
-from .common import (EXIT_OK, EXIT_USAGE, SUBCOMMANDS, error_line, interrupted_exit_code, say, signal_name,
+from ..sinks.base import WriteFailed
+from .common import (EXIT_FAILED, EXIT_OK, EXIT_USAGE, SUBCOMMANDS, error_line, interrupted_exit_code, say, signal_name,
                      stop_signals_as_interrupt)
 
 __all__ = ["main"]
@@ -42,6 +43,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     try:
         with stop_signals_as_interrupt():
             return dispatch(argv)
+    except WriteFailed as exc:   # a full disk part-way: not the user's input
+        print(error_line(str(exc)), file=sys.stderr)
+        return EXIT_FAILED
     except VidtrackError as exc:
         print(error_line(str(exc)), file=sys.stderr)
         return EXIT_USAGE

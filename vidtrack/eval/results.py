@@ -24,7 +24,6 @@ import os
 from pathlib import Path
 from typing import Any
 
-from ..errors import OutputError
 from .confidence import confidence_path
 
 #: Version of the run record's format; a record of another version is never reused.
@@ -45,15 +44,19 @@ def write_atomic(path: Path, text: str) -> None:
     Raises
     ------
     OutputError
-        When the file cannot be written.
+        When the file cannot be written; :class:`~vidtrack.sinks.base.WriteFailed`
+        for a full disk (the earlier version of the file, if any, is kept).
     """
+    from ..sinks.base import failed_write
+
     tmp = path.with_name(path.name + ".part")
     try:
         path.parent.mkdir(parents=True, exist_ok=True)
         tmp.write_text(text, encoding="utf-8")
         os.replace(tmp, path)
     except OSError as exc:
-        raise OutputError(f"cannot write {path}: {exc.strerror or exc}") from None
+        tmp.unlink(missing_ok=True)   # no half-written file left behind (a full disk)
+        raise failed_write(path, exc) from None
 
 
 def write_result(out: str | Path, filter_name: str, sequence_name: str, lines: list[str], record: dict[str, Any],
