@@ -330,3 +330,67 @@ def test_a_full_disk_in_eval_keeps_finished_results_and_is_exit_1(tmp_path, smal
     assert record["sequence"] == "Alpha" and len(read_boxes(small_disk / "kalman-cv" / "Alpha.txt")) == 30
     assert not (small_disk / "kalman-cv" / "Beta.json").exists()
     assert not list(small_disk.rglob("*.part"))
+
+
+def _job_processes(psutil, parent) -> list:
+    """The job processes of a ``vidtrack eval`` process: the children of its fork server."""
+    servers = [p for p in parent.children() if "forkserver" in " ".join(p.cmdline())]
+    return [child for server in servers for child in server.children()]
+
+
+@pytest.mark.parametrize("kills", [1, 2])
+def test_a_killed_job_is_run_again_once_then_failed_for_its_sequence_only(tmp_path, kills):
+    psutil = pytest.importorskip("psutil")
+    data = tmp_path / "data"
+    for name, count in (("Alpha", 30), ("Beta", 4000), ("Gamma", 30)):
+        folder = write_frames(data / name / "img", count)
+        rows = [f"{x + 1},{y + 1},16,16" for x, y in (square_position(i) for i in range(count))]
+        (folder.parent / "groundtruth_rect.txt").write_text("\n".join(rows) + "\n")
+    out = tmp_path / "out"
+    process = _start(["eval", str(data), "--filter", "kalman-cv", "--no-plots", "--jobs", "1", "--out", str(out)],
+                     tmp_path)
+    _wait_for(process, (out / "kalman-cv" / "Alpha.json").exists)   # jobs run in order: Beta's is next
+    parent, killed = psutil.Process(process.pid), set()
+    for _ in range(kills):
+        _wait_for(process, lambda: [p for p in _job_processes(psutil, parent) if p.pid not in killed])
+        job = next(p for p in _job_processes(psutil, parent) if p.pid not in killed)
+        job.kill()                                                    # as the OOM killer would
+        killed.add(job.pid)
+    stderr = _finish(process, timeout=300)
+    assert "Traceback" not in stderr, stderr
+    assert (out / "kalman-cv" / "Gamma.json").exists(), (process.returncode, stderr)
+    for name in ("Alpha", "Gamma"):
+        assert json.loads((out / "kalman-cv" / f"{name}.json").read_text())["sequence"] == name
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary
+    if kills == 1:                                                    # run again, and this time it finished
+        assert process.returncode == 0, stderr
+        assert len(read_boxes(out / "kalman-cv" / "Beta.txt")) == 4000
+    else:
+        assert process.returncode == 1, stderr
+        failed = [line for line in stderr.splitlines() if "FAILED" in line]
+        assert len(failed) == 1 and re.fullmatch(r"vidtrack eval: kalman-cv FAILED on Beta: worker process died "
+                                                 r"\((killed by signal 9|while it was started)\), also when run again",
+                                                 failed[0]), stderr
+        assert not (out / "kalman-cv" / "Beta.json").exists()
+
+
+def test_two_evals_on_one_folder_leave_whole_results(tmp_path):
+    data = tmp_path / "data"
+    names = ("Alpha", "Beta", "Gamma")
+    for name in names:
+        folder = write_frames(data / name / "img", 300)
+        rows = [f"{x + 1},{y + 1},16,16" for x, y in (square_position(i) for i in range(300))]
+        (folder.parent / "groundtruth_rect.txt").write_text("\n".join(rows) + "\n")
+    out = tmp_path / "out"
+    command = ["eval", str(data), "--filter", "kalman-cv,ms", "--no-plots", "-q", "--force", "--out", str(out)]
+    first, second = _start(command, tmp_path), _start(command, tmp_path)   # both write every result
+    for process in (first, second):
+        stderr = _finish(process, timeout=300)
+        assert process.returncode == 0, stderr
+        assert "Traceback" not in stderr, stderr
+    for tracker in ("kalman-cv", "ms"):
+        for name in names:
+            assert len(read_boxes(out / tracker / f"{name}.txt")) == 300
+            assert json.loads((out / tracker / f"{name}.json").read_text())["sequence"] == name
+    assert not list(out.rglob("*.part"))

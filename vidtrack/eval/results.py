@@ -21,6 +21,7 @@ from __future__ import annotations
 
 import json
 import os
+import threading
 from pathlib import Path
 from typing import Any
 
@@ -39,7 +40,10 @@ def result_paths(out: str | Path, filter_name: str, sequence_name: str) -> tuple
 
 
 def write_atomic(path: Path, text: str) -> None:
-    """Write ``text`` to ``path`` through a ``.part`` file, so a reader never sees half of it.
+    """Write ``text`` to ``path`` through a ``.part`` file of this writer's own, so a reader never sees half of it.
+
+    The rename is atomic: of two processes writing the same file, the last
+    rename wins with a whole file.
 
     Raises
     ------
@@ -49,7 +53,8 @@ def write_atomic(path: Path, text: str) -> None:
     """
     from ..sinks.base import failed_write
 
-    tmp = path.with_name(path.name + ".part")
+    # one .part file per writer: two evaluations writing one folder never write into each other's
+    tmp = path.with_name(f"{path.name}.{os.getpid()}.{threading.get_ident()}.part")
     try:
         path.parent.mkdir(parents=True, exist_ok=True)
         tmp.write_text(text, encoding="utf-8")

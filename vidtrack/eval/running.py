@@ -52,7 +52,8 @@ def execute(jobs: list[Job], *, workers: int = 1, scheduler: str | None = None,
     (the default, required unless the jobs run one at a time here) every job
     runs in a fresh process (:mod:`vidtrack.eval.worker`),
     so its result does not depend on which jobs ran before it in the same
-    process; a job whose process dies is yielded as ``failed``.  When the
+    process; a job whose process dies is run once more, then yielded as
+    ``failed`` (:func:`~vidtrack.eval.worker.run_fresh`).  When the
     caller stops early (an exception such as Ctrl-C or SIGTERM, or closing
     this generator), every job process still running is ended.
     """

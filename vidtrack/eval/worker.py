@@ -13,7 +13,8 @@ that crashes the interpreter (a segfault in native code) to its own job.
   vidtrack.eval.worker JOB OUT`` with pickle files (a
   :class:`~vidtrack.eval.jobs.Job` in, a
   :class:`~vidtrack.eval.jobs.JobOutput` out); seconds per job.
-* :func:`run_fresh` picks one of the two.
+* :func:`run_fresh` picks one of the two, and runs a job whose process
+  died (the OOM killer, a segfault) once more before reporting it failed.
 
 When the caller stops (Ctrl-C, SIGTERM: a KeyboardInterrupt in the thread
 waiting for a job) the job's process is ended with it; :func:`stop_workers`
@@ -66,11 +67,25 @@ def _forked_child(job: Job, connection) -> None:
     connection.close()
 
 
+#: The start of a failed output's error when the job's process died (not the tracker raising).
+DIED = "worker process died"
+#: Times a job whose process died is run again before it is reported failed.
+RETRIES = 1
+
+
 def _died(job: Job, code: int | None) -> JobOutput:
     if code == 130:
         raise KeyboardInterrupt
-    reason = f"killed by signal {-code}" if code is not None and code < 0 else f"exit code {code}"
-    return JobOutput(job.filter_name, job.sequence.name, "failed", error=f"worker process died ({reason})")
+    if code is None:
+        reason = "while it was started"
+    else:
+        reason = f"killed by signal {-code}" if code < 0 else f"exit code {code}"
+    return JobOutput(job.filter_name, job.sequence.name, "failed", error=f"{DIED} ({reason})")
+
+
+def died(output: JobOutput) -> bool:
+    """Whether ``output`` is a job whose process died (the OOM killer, a segfault, a kill), not a tracker error."""
+    return output.status == "failed" and (output.error or "").startswith(DIED)
 
 
 def _stop(process) -> None:
@@ -136,7 +151,7 @@ def run_forked(job: Job) -> JobOutput:
             _track(process)
         sender.close()
         output = receiver.recv()
-    except EOFError:
+    except (EOFError, BrokenPipeError):   # died before its answer, or while it was given its job
         output = None
     except BaseException:
         _stop(process)
@@ -191,12 +206,23 @@ def main(argv: list[str]) -> int:
 
 
 def run_fresh(job: Job) -> JobOutput:
-    """:func:`run_forked` where this process may have children, else :func:`run_isolated`."""
+    """:func:`run_forked` where this process may have children, else :func:`run_isolated`.
+
+    A job whose process dies (:func:`died`) runs again, :data:`RETRIES`
+    times, in a new process; then it is reported failed, saying it was
+    retried.
+    """
     import multiprocessing
 
-    if multiprocessing.current_process().daemon:
-        return run_isolated(job)
-    return run_forked(job)
+    runner = run_isolated if multiprocessing.current_process().daemon else run_forked
+    output = runner(job)
+    for _ in range(RETRIES):
+        if not died(output) or _STOPPING.is_set():
+            return output
+        output = runner(job)
+    if died(output):
+        output.error = f"{output.error}, also when run again"
+    return output
 
 
 if __name__ == "__main__":
