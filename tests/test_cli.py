@@ -121,9 +121,9 @@ def test_video_failing_part_way_keeps_tracked_frames(tmp_path, sample_init_box):
     cut.write_bytes(data[: len(data) // 2])
     boxes = tmp_path / "b.txt"
     result = vidtrack(cut, "--init-box", sample_init_box, "--filter", "ms", "--boxes", boxes, "--quiet")
-    assert result.returncode == 2
+    assert result.returncode == 0     # what was tracked is the result; one warning says the video ended early
     lines = result.stderr.strip().splitlines()
-    assert len(lines) == 1 and "decoding stopped at frame" in lines[0] and "kept the" in lines[0]
+    assert len(lines) == 1 and "warning: decoding stopped at frame" in lines[0] and "kept the" in lines[0]
     kept = boxes.read_text().splitlines()
     assert 20 < len(kept) < 150
     assert f"kept the {len(kept)} frames" in lines[0]

@@ -74,19 +74,58 @@ def image_size(path: str | Path) -> tuple[int, int]:
 def check_same_size(files: list[Path]) -> tuple[int, int]:
     """The common ``(width, height)`` of ``files``, read from their headers.
 
+    A file after the first whose header cannot be read is left to decoding,
+    which skips it (see :class:`ImageFolderSource`).
+
     Raises
     ------
     SourceError
         Naming the first file whose size differs from the first file's, or
-        the first file that is not an image.
+        when the first file is not an image.
     """
     size = image_size(files[0])
     for file in files[1:]:
-        other = image_size(file)
+        try:
+            other = image_size(file)
+        except SourceError:
+            continue
         if other != size:
             raise SourceError(f"image {file} is {other[0]}x{other[1]} but {files[0].name} is "
                               f"{size[0]}x{size[1]}: every frame of a folder must have one size")
     return size
+
+
+#: Suffixes of JPEG files, which end with the end-of-image marker :data:`JPEG_END` when complete.
+JPEG_SUFFIXES = {".jpg", ".jpeg"}
+JPEG_END = b"\xff\xd9"
+
+
+def is_truncated_jpeg(path: Path) -> bool:
+    """True for a JPEG file whose last bytes hold no end-of-image marker (a copy or download cut short).
+
+    libjpeg decodes such a file with its missing part grey; the marker may be
+    followed by a few padding bytes, so the last 64 bytes are searched.
+    """
+    if path.suffix.lower() not in JPEG_SUFFIXES:
+        return False
+    try:
+        with open(path, "rb") as file:
+            file.seek(0, 2)
+            file.seek(max(file.tell() - 64, 0))
+            return JPEG_END not in file.read()
+    except OSError:
+        return True
+
+
+class SkippedFrame:
+    """A frame a source could not decode in the middle of a stream: ``index`` and why (``reason``)."""
+
+    def __init__(self, index: int, reason: str) -> None:
+        self.index = index
+        self.reason = reason
+
+    def __repr__(self) -> str:
+        return f"SkippedFrame({self.index}, {self.reason!r})"
 
 
 def probe_container(path: Path) -> None:
@@ -117,6 +156,12 @@ def probe_container(path: Path) -> None:
 class ImageFolderSource:
     """Frames from the sorted image files of a folder.
 
+    A file in the middle that does not decode (corrupt, truncated, or of
+    another size) is skipped: the source yields a frame with the previous
+    image in its place, lists it in ``skipped`` (:class:`SkippedFrame`, its
+    index in ``missing``) and calls ``on_skip`` with a message naming it, so
+    a run predicts through it and keeps one box per frame.
+
     Parameters
     ----------
     folder
@@ -127,8 +172,9 @@ class ImageFolderSource:
     Raises
     ------
     SourceError
-        If the folder does not exist, holds no images, or its images do not
-        all have one size (the message names the first odd file).
+        If the folder does not exist, holds no images, its first image does
+        not decode, or its images do not all have one size (the message
+        names the first odd file).
     """
 
     def __init__(self, folder: str | Path, files: list[Path] | None = None) -> None:
@@ -143,26 +189,52 @@ class ImageFolderSource:
         self.size = check_same_size(self.files)  # one clear line now, not a confused tracker later
         self.fps = 30.0
         self.decode_error: str | None = None
+        self.skipped: list[SkippedFrame] = []
+        self.missing: set[int] = set()
+        self.on_skip = None
 
     def __len__(self) -> int:
         return len(self.files)
 
+    def _decode(self, file: Path) -> tuple[np.ndarray | None, str]:
+        if is_truncated_jpeg(file):
+            return None, f"image {file} is truncated"
+        image = read_image(file)
+        if image is None:
+            return None, f"cannot decode image {file}"
+        if image.shape[1::-1] != self.size:
+            return None, (f"image {file} decodes as {image.shape[1]}x{image.shape[0]}, "
+                          f"not {self.size[0]}x{self.size[1]}")
+        return image, ""
+
     def __iter__(self) -> Iterator[Frame]:
+        self.skipped, self.missing = [], set()
+        previous = None
         for index, file in enumerate(self.files):
-            image = read_image(file)
+            image, reason = self._decode(file)
             if image is None:
-                self.decode_error = f"cannot decode image {file}"
-                if index == 0:
-                    raise SourceError(self.decode_error)
-                return
-            if image.shape[1::-1] != self.size:
-                raise SourceError(f"image {file} decodes as {image.shape[1]}x{image.shape[0]}, "
-                                  f"not {self.size[0]}x{self.size[1]}")
+                if previous is None:
+                    self.decode_error = reason
+                    raise SourceError(reason)
+                self.skipped.append(SkippedFrame(index, reason))
+                self.missing.add(index)
+                if self.on_skip is not None:
+                    self.on_skip(f"{reason}: frame {index} skipped")
+                image = previous
+            previous = image
             yield Frame(index, image)
 
 
 class VideoSource:
     """Frames decoded from a video file by OpenCV (mp4, avi, webm ...).
+
+    Where FFmpeg skips corrupt data in the middle and resynchronises, the
+    frames' timestamps jump: the frames in between are yielded with the
+    last decoded image in their place and listed in ``skipped`` and
+    ``missing`` (as :class:`ImageFolderSource` does), ``on_skip`` is called
+    once per gap, and the frames after it keep their true indices.  A video
+    that stops decoding before its announced frame count sets
+    ``decode_error`` and ends.
 
     Raises
     ------
@@ -186,23 +258,46 @@ class VideoSource:
         if not ok:
             raise SourceError(f"video holds no decodable frame: {self.path}")
         self._count = max(count, 0)
-        self.fps = fps if 1.0 <= fps <= 240.0 else 30.0
+        self._stamped = 1.0 <= fps <= 240.0   # timestamps can place frames only with a plausible rate
+        self.fps = fps if self._stamped else 30.0
         self.decode_error: str | None = None
+        self.skipped: list[SkippedFrame] = []
+        self.missing: set[int] = set()
+        self.on_skip = None
 
     def __len__(self) -> int:
         return self._count
 
+    def _gap(self, start: int, stop: int) -> None:
+        reason = "corrupt data in the video"
+        self.skipped += [SkippedFrame(index, reason) for index in range(start, stop)]
+        self.missing.update(range(start, stop))
+        if self.on_skip is not None:
+            frames = f"frame {start}" if stop - start == 1 else f"frames {start}-{stop - 1}"
+            self.on_skip(f"{reason}: {frames} did not decode and are skipped")
+
     def __iter__(self) -> Iterator[Frame]:
+        self.skipped, self.missing = [], set()
         capture = cv2.VideoCapture(str(self.path))
         try:
-            index = 0
+            index, first_ms, previous = 0, None, None
             while True:
                 ok, image = capture.read()
                 if not ok or image is None:
                     if self._count and index < self._count:
                         self.decode_error = f"decoding stopped at frame {index} of {self._count}"
                     return
-                yield Frame(index, _as_bgr(image))
+                image = _as_bgr(image)
+                milliseconds = capture.get(cv2.CAP_PROP_POS_MSEC)
+                first_ms = milliseconds if first_ms is None else first_ms
+                stamp = round((milliseconds - first_ms) * self.fps / 1000.0) if self._stamped else index
+                if previous is not None and stamp > index:   # FFmpeg resynchronised after corrupt data
+                    self._gap(index, stamp)
+                    for missing in range(index, stamp):
+                        yield Frame(missing, previous)
+                    index = stamp
+                yield Frame(index, image)
+                previous = image
                 index += 1
         finally:
             capture.release()

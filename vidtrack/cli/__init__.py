@@ -17,7 +17,9 @@ import sys
 from typing import Sequence
 
 from ..errors import UsageError, VidtrackError
-from .common import EXIT_INTERRUPTED, EXIT_OK, EXIT_USAGE, SUBCOMMANDS, error_line, say
+from ..sinks.base import WriteFailed
+from .common import (EXIT_FAILED, EXIT_OK, EXIT_USAGE, SUBCOMMANDS, error_line, interrupted_exit_code, say, signal_name,
+                     stop_signals_as_interrupt)
 
 __all__ = ["main"]
 
@@ -39,12 +41,16 @@ def main(argv: Sequence[str] | None = None) -> int:
     """Entry point of the ``vidtrack`` console script: the exit code."""
     argv = list(sys.argv[1:] if argv is None else argv)
     try:
-        return dispatch(argv)
+        with stop_signals_as_interrupt():
+            return dispatch(argv)
+    except WriteFailed as exc:   # a full disk part-way: not the user's input
+        print(error_line(str(exc)), file=sys.stderr)
+        return EXIT_FAILED
     except VidtrackError as exc:
         print(error_line(str(exc)), file=sys.stderr)
         return EXIT_USAGE
-    except KeyboardInterrupt:
-        say("interrupted")
-        return EXIT_INTERRUPTED
+    except KeyboardInterrupt as exc:
+        say(f"interrupted ({signal_name(exc)}); every finished output is kept")
+        return interrupted_exit_code(getattr(exc, "signum", None))
     except BrokenPipeError:
         return EXIT_OK

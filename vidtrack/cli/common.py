@@ -17,8 +17,10 @@ from __future__ import annotations
 
 import argparse
 import math
+import signal
 import sys
-from typing import Any, Sequence
+from contextlib import contextmanager
+from typing import Any, Iterator, Sequence
 
 from ..config import parse_setting, read_toml
 from ..errors import UsageError
@@ -30,7 +32,10 @@ SUBCOMMANDS = ("filters", "eval", "reproduce", "learn", "bench", "trax")
 EXIT_OK = 0
 EXIT_FAILED = 1          # a run finished but part of it failed (``vidtrack eval``: a tracker crashed)
 EXIT_USAGE = 2           # bad input: one line on stderr
-EXIT_INTERRUPTED = 130   # Ctrl-C (128 + SIGINT)
+EXIT_INTERRUPTED = 130   # Ctrl-C (128 + SIGINT); a stopping signal N gives 128 + N (SIGTERM: 143)
+
+#: Signals that stop a run the way Ctrl-C does: every output finished, exit 128 + N.
+STOP_SIGNALS = (signal.SIGINT, signal.SIGTERM, signal.SIGHUP)
 
 DEFAULT_FILTER = "mil"
 FALLBACK_FILTER = "kalman-cv"
@@ -39,6 +44,67 @@ FALLBACK_FILTER = "kalman-cv"
 def say(message: str) -> None:
     """A message of the ``vidtrack`` command on stderr (stdout carries results only)."""
     print(f"vidtrack: {message}", file=sys.stderr)
+
+
+class Stopped(KeyboardInterrupt):
+    """A stopping signal (:data:`STOP_SIGNALS`) raised where the main thread is, like Ctrl-C's KeyboardInterrupt.
+
+    Parameters
+    ----------
+    signum
+        The signal's number (``signal.SIGTERM`` ...).
+    """
+
+    def __init__(self, signum: int) -> None:
+        super().__init__(signal.Signals(signum).name)
+        self.signum = int(signum)
+
+
+def signal_name(exc: BaseException) -> str:
+    """``SIGTERM`` for a :class:`Stopped` by SIGTERM, ``SIGINT`` for any other KeyboardInterrupt."""
+    return signal.Signals(getattr(exc, "signum", signal.SIGINT)).name
+
+
+def interrupted_exit_code(signum: int | None) -> int:
+    """128 + the signal's number (130 for SIGINT, 143 for SIGTERM); 130 when it is not known."""
+    return 128 + int(signum if signum is not None else signal.SIGINT)
+
+
+@contextmanager
+def stop_signals_as_interrupt() -> Iterator[None]:
+    """Within the block, SIGINT, SIGTERM and SIGHUP raise :class:`Stopped` in the main thread.
+
+    So ``docker stop``, a scheduler's time limit or a closed terminal end a
+    run the way Ctrl-C does: the code unwinding from the exception finishes
+    every output.  Only the first signal raises; later ones are ignored while
+    the outputs are being finished (``kill -9`` still stops at once), and a
+    signal arriving while a frame is written to the sinks waits till it is
+    written to all of them (:func:`vidtrack.sinks.base.defer_interrupt`).  The
+    previous handlers are restored on leaving the block.  Outside the main
+    thread this does nothing (Python delivers signals to the main thread only).
+    """
+    import threading
+
+    from ..sinks.base import defer_interrupt
+
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    received: list[int] = []
+
+    def handler(signum, frame) -> None:
+        if received:
+            return
+        received.append(signum)
+        if not defer_interrupt(Stopped(signum)):
+            raise Stopped(signum)
+
+    previous = {number: signal.signal(number, handler) for number in STOP_SIGNALS}
+    try:
+        yield
+    finally:
+        for number, old in previous.items():
+            signal.signal(number, old)
 
 
 def error_line(message: str) -> str:

@@ -1,22 +1,27 @@
 """``vidtrack VIDEO --init-box x,y,w,h [--filter NAME] [options]``: track one object through a video.
 
 Writes any of: the annotated video (``-o``), one box per frame (``--boxes``),
-a per-frame CSV log (``--log``) and a Rerun recording (``--rerun``).  Exit 0;
-2 on bad input (one line) or when decoding stopped part way (the frames
-tracked are kept); 130 after Ctrl-C (every frame tracked is kept).
+a per-frame CSV log (``--log``) and a Rerun recording (``--rerun``).  Exit 0,
+also when a frame in the middle does not decode (a warning names it; the
+tracker predicts through it) or the video stops decoding part way (a warning;
+every frame tracked is kept); 1 when an output fails part-way (a full disk:
+one line, every file valid up to its last complete write); 2 on bad input
+(one line); 128 + N after a
+stopping signal N: 130 for Ctrl-C (SIGINT), 143 for SIGTERM, every output
+finished with every frame tracked.
 """
 
 from __future__ import annotations
 
 import argparse
+import signal
 import sys
 from typing import Sequence
 
 from ..errors import UsageError, VidtrackError
 from ..version import __version__
-from .common import (EXIT_INTERRUPTED, EXIT_OK, EXIT_USAGE, SUBCOMMANDS, OneLineParser, add_filter_argument,
-                     add_settings_arguments, check_box_in_frame, check_settings, default_filter, error_line,
-                     parse_init_box, progress_bar, say, tracker_settings)
+from .common import (EXIT_FAILED, EXIT_OK, SUBCOMMANDS, OneLineParser, add_filter_argument, add_settings_arguments,
+                     check_box_in_frame, check_settings, default_filter, error_line, interrupted_exit_code, parse_init_box, progress_bar, say, tracker_settings)
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -65,6 +70,7 @@ def main(argv: Sequence[str]) -> int:
     check_settings(name, settings)
     tracker = build_tracker(name, seed=args.seed, settings=settings)
     source = open_source(args.video)
+    source.on_skip = lambda message: say(f"warning: {message}; the tracker predicts through")
 
     sinks = []
     try:
@@ -96,12 +102,17 @@ def main(argv: Sequence[str]) -> int:
     written = [str(s.path) for s in sinks if getattr(s, "path", None)]
     if not args.quiet:
         say(f"{name} tracked {result.frames} frames at {result.fps:.1f} fps, lost in {result.lost_frames}"
+            + (f", {len(result.skipped)} undecodable skipped" if result.skipped else "")
             + (f"; wrote {', '.join(written)}" if written else ""))
     if result.interrupted:
-        say(f"interrupted after {result.frames} frames; outputs keep every tracked frame")
-        return EXIT_INTERRUPTED
-    if result.decode_error:
-        print(error_line(f"{result.decode_error}; kept the {result.frames} frames tracked"), file=sys.stderr)
-        return EXIT_USAGE
+        name = signal.Signals(result.signum or signal.SIGINT).name
+        say(f"interrupted after {result.frames} frames ({name}); outputs keep every tracked frame")
+        return interrupted_exit_code(result.signum)
+    if result.output_error is not None:   # a full disk: every output holds the frames written before it
+        print(error_line(f"{result.output_error}; the outputs keep the {result.frames} frames written before"),
+              file=sys.stderr)
+        return EXIT_FAILED
+    if result.decode_error:  # a video cut short: what was tracked is the result
+        say(f"warning: {result.decode_error}; kept the {result.frames} frames tracked")
     return EXIT_OK
 

@@ -119,7 +119,11 @@ def _ground_truth_pixels(sequence: BenchmarkSequence, start: int, stop: int) -> 
 
 
 def track_job(job: Job) -> JobOutput:
-    """Run ``job`` and return its result lines and record (raises on a tracker error)."""
+    """Run ``job`` and return its result lines and record (raises on a tracker error).
+
+    A frame in the middle that does not decode is predicted through; the
+    record then lists it under ``skipped`` (ground-truth row and reason).
+    """
     from ..recipes import build_tracker
     from ..run import run_tracker
     from ..sources import ImageFolderSource
@@ -173,6 +177,8 @@ def track_job(job: Job) -> JobOutput:
         "fps": result.fps,
         "rerun": job.rerun_path,
     }
+    if result.skipped:  # frames that did not decode: the tracker predicted through them (rows 0-based)
+        record["skipped"] = [{"row": start + s.index, "reason": s.reason} for s in result.skipped]
     confidence = conf.format_confidence((row, *s) for row, s in enumerate(collector.states, start=start))
     return JobOutput(job.filter_name, sequence.name, "done", lines, record, confidence=confidence)
 

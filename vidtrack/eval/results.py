@@ -21,10 +21,10 @@ from __future__ import annotations
 
 import json
 import os
+import threading
 from pathlib import Path
 from typing import Any
 
-from ..errors import OutputError
 from .confidence import confidence_path
 
 #: Version of the run record's format; a record of another version is never reused.
@@ -40,20 +40,28 @@ def result_paths(out: str | Path, filter_name: str, sequence_name: str) -> tuple
 
 
 def write_atomic(path: Path, text: str) -> None:
-    """Write ``text`` to ``path`` through a ``.part`` file, so a reader never sees half of it.
+    """Write ``text`` to ``path`` through a ``.part`` file of this writer's own, so a reader never sees half of it.
+
+    The rename is atomic: of two processes writing the same file, the last
+    rename wins with a whole file.
 
     Raises
     ------
     OutputError
-        When the file cannot be written.
+        When the file cannot be written; :class:`~vidtrack.sinks.base.WriteFailed`
+        for a full disk (the earlier version of the file, if any, is kept).
     """
-    tmp = path.with_name(path.name + ".part")
+    from ..sinks.base import failed_write
+
+    # one .part file per writer: two evaluations writing one folder never write into each other's
+    tmp = path.with_name(f"{path.name}.{os.getpid()}.{threading.get_ident()}.part")
     try:
         path.parent.mkdir(parents=True, exist_ok=True)
         tmp.write_text(text, encoding="utf-8")
         os.replace(tmp, path)
     except OSError as exc:
-        raise OutputError(f"cannot write {path}: {exc.strerror or exc}") from None
+        tmp.unlink(missing_ok=True)   # no half-written file left behind (a full disk)
+        raise failed_write(path, exc) from None
 
 
 def write_result(out: str | Path, filter_name: str, sequence_name: str, lines: list[str], record: dict[str, Any],

@@ -11,6 +11,7 @@ are written by the workers).
 
 from __future__ import annotations
 
+from contextlib import closing
 from pathlib import Path
 from typing import Any, Callable, Iterator
 
@@ -51,22 +52,30 @@ def execute(jobs: list[Job], *, workers: int = 1, scheduler: str | None = None,
     (the default, required unless the jobs run one at a time here) every job
     runs in a fresh process (:mod:`vidtrack.eval.worker`),
     so its result does not depend on which jobs ran before it in the same
-    process; a job whose process dies is yielded as ``failed``.
+    process; a job whose process dies is run once more, then yielded as
+    ``failed`` (:func:`~vidtrack.eval.worker.run_fresh`).  When the
+    caller stops early (an exception such as Ctrl-C or SIGTERM, or closing
+    this generator), every job process still running is ended.
     """
     if not jobs:
         return
     if not isolate and (scheduler is not None or workers > 1):
         raise UsageError("jobs run in this process only one at a time (no --jobs or --scheduler)")
-    from .worker import run_fresh
+    from .worker import allow_workers, run_fresh, stop_workers
 
+    allow_workers()
     runner = run_fresh if isolate else run_job
-    if scheduler is not None:
-        yield from _execute_dask(jobs, scheduler, runner)
-    elif workers > 1 and len(jobs) > 1:
-        yield from _execute_threads(jobs, workers, runner)
-    else:
-        for job in jobs:
-            yield runner(job)
+    try:
+        if scheduler is not None:
+            yield from _execute_dask(jobs, scheduler, runner)
+        elif workers > 1 and len(jobs) > 1:
+            yield from _execute_threads(jobs, workers, runner)
+        else:
+            for job in jobs:
+                yield runner(job)
+    except BaseException:
+        stop_workers()   # no job process outlives an interrupted evaluation
+        raise
 
 
 def _failed(job: Job, exc: BaseException) -> JobOutput:
@@ -77,6 +86,8 @@ def _execute_threads(jobs: list[Job], workers: int, runner) -> Iterator[JobOutpu
     from concurrent.futures import ThreadPoolExecutor, as_completed
 
     # each thread waits on its own worker process: ``workers`` jobs track in parallel
+    from .worker import stop_workers
+
     pool = ThreadPoolExecutor(max_workers=min(workers, len(jobs)))
     try:
         futures = {pool.submit(runner, job): job for job in jobs}
@@ -85,6 +96,10 @@ def _execute_threads(jobs: list[Job], workers: int, runner) -> Iterator[JobOutpu
                 yield future.result()
             except Exception as exc:
                 yield _failed(futures[future], exc)
+    except BaseException:
+        pool.shutdown(wait=False, cancel_futures=True)   # no new job starts ...
+        stop_workers()                                    # ... and the running ones end: the threads return
+        raise
     finally:
         pool.shutdown(wait=True, cancel_futures=True)
 
@@ -135,11 +150,13 @@ def run_jobs(jobs: list[Job], out: str | Path, *, force: bool = False, workers: 
         outputs[job.key] = JobOutput(*job.key, "reused", record=record)
         if on_output is not None:
             on_output(outputs[job.key])
-    for output in execute(pending, workers=workers, scheduler=scheduler, isolate=isolate):
-        if output.status != "failed":
-            write_result(out, output.filter_name, output.sequence_name, output.lines or [], output.record,
-                         output.confidence)
-        outputs[(output.filter_name, output.sequence_name)] = output
-        if on_output is not None:
-            on_output(output)
+    # closing: an interruption while a result is written still ends the running jobs' processes
+    with closing(execute(pending, workers=workers, scheduler=scheduler, isolate=isolate)) as finished:
+        for output in finished:
+            if output.status != "failed":
+                write_result(out, output.filter_name, output.sequence_name, output.lines or [], output.record,
+                             output.confidence)
+            outputs[(output.filter_name, output.sequence_name)] = output
+            if on_output is not None:
+                on_output(output)
     return outputs

@@ -1,11 +1,15 @@
-"""Text sinks: the boxes file and the per-frame CSV log, flushed frame by frame."""
+"""Text sinks: the boxes file and the per-frame CSV log, written line by line.
+
+Each line goes to the operating system whole (:class:`~vidtrack.sinks.base.LineFile`):
+after a hard stop or a full disk the files end with their last complete line.
+"""
 
 from __future__ import annotations
 
 from pathlib import Path
 
 from ..types import Frame, TrackState
-from .base import open_text_output
+from .base import LineFile
 
 
 def format_box(box, decimals: int = 2) -> str:
@@ -18,10 +22,10 @@ class BoxesSink:
 
     def __init__(self, path: str | Path) -> None:
         self.path = Path(path)
-        self._file = open_text_output(self.path)
+        self._file = LineFile(self.path)
 
     def write(self, frame: Frame, state: TrackState) -> None:
-        self._file.write(format_box(state.box) + "\n")
+        self._file.write_line(format_box(state.box))
 
     def close(self) -> None:
         self._file.close()
@@ -34,11 +38,11 @@ class CsvLogSink:
 
     def __init__(self, path: str | Path) -> None:
         self.path = Path(path)
-        self._file = open_text_output(self.path)
-        self._file.write(self.HEADER)
+        self._file = LineFile(self.path)
+        self._file.write_line(self.HEADER.rstrip("\n"))
 
     def write(self, frame: Frame, state: TrackState) -> None:
-        self._file.write(f"{state.index},{format_box(state.box)},{state.confidence:.4f},{state.status}\n")
+        self._file.write_line(f"{state.index},{format_box(state.box)},{state.confidence:.4f},{state.status}")
 
     def close(self) -> None:
         self._file.close()

@@ -82,7 +82,14 @@ class H264Writer:
         self._container, self._stream = container, stream
 
     def write(self, image: np.ndarray) -> None:
-        """Encode one ``(H, W, 3) uint8`` BGR frame (odd sides padded by one row/column)."""
+        """Encode one ``(H, W, 3) uint8`` BGR frame (odd sides padded by one row/column).
+
+        Raises
+        ------
+        OutputError
+            :class:`~vidtrack.sinks.base.WriteFailed` for a full disk (the
+            file is then closed, keeping every fragment written before).
+        """
         import av
 
         image = even_frame(np.ascontiguousarray(image))
@@ -91,20 +98,55 @@ class H264Writer:
         frame = av.VideoFrame.from_ndarray(image, format="bgr24")
         frame.pts = self.frames_
         frame.time_base = 1 / self._rate
-        for packet in self._stream.encode(frame):
-            self._container.mux(packet)
+        try:
+            for packet in self._stream.encode(frame):
+                self._container.mux(packet)
+        except (av.FFmpegError, OSError) as exc:   # a full disk: the fragments written so far stay playable
+            self._abandon()
+            raise self._error(exc) from None
         self.frames_ += 1
 
-    def close(self) -> None:
-        """Flush the encoder and finish the file (safe to call twice)."""
+    def _error(self, exc: BaseException) -> OutputError:
+        from .base import failed_write
+
+        if isinstance(exc, OSError):
+            return failed_write(self.path, exc)
+        return OutputError(f"cannot write video {self.path}: {exc}")
+
+    def _abandon(self) -> None:
+        """Close the file after a failed write, without flushing the encoder (nothing more can be written)."""
         container, self._container = self._container, None
+        if container is not None:
+            try:
+                container.close()
+            except Exception:   # the file keeps the fragments written before the failure
+                pass
+
+    def close(self) -> None:
+        """Flush the encoder and finish the file (safe to call twice).
+
+        Raises
+        ------
+        OutputError
+            :class:`~vidtrack.sinks.base.WriteFailed` for a full disk; the
+            file keeps every fragment written before.
+        """
+        import av
+
+        container = self._container
         if container is None:
             return
         try:
             for packet in self._stream.encode(None):
                 container.mux(packet)
-        finally:
+        except (av.FFmpegError, OSError) as exc:
+            self._abandon()
+            raise self._error(exc) from None
+        self._container = None
+        try:
             container.close()
+        except (av.FFmpegError, OSError) as exc:
+            raise self._error(exc) from None
 
 
 def count_frames(path: str | Path) -> int:
