@@ -178,6 +178,21 @@ def read_list(path: Path) -> list[str]:
     return [line for line in lines if line]
 
 
+
+def listed_sequences(root: Path, is_sequence, load_sequence) -> dict:
+    """``name -> partial(load_sequence, folder)`` for a folder of sequence folders (in ``list.txt`` order
+    when there is one) or for one sequence folder (the GOT-10k and VOT layouts)."""
+    from functools import partial
+
+    root = Path(root)
+    if is_sequence(root):
+        return {root.name: partial(load_sequence, root)}
+    if (root / "list.txt").is_file():
+        names = read_list(root / "list.txt")
+    else:
+        names = sorted(p.name for p in root.iterdir() if is_sequence(p))
+    return {name: partial(load_sequence, root / name) for name in names}
+
 def read_flags(path: Path, count: int) -> np.ndarray:
     """``(count,)`` bool from a file of 0/1 flags (comma- or line-separated), one per frame.
 

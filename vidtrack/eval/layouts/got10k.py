@@ -22,8 +22,7 @@ from pathlib import Path
 import numpy as np
 
 from ...errors import DatasetError
-from ..sequence import (BenchmarkSequence, check_row_count, make_sequence, read_boxes, read_flags, read_list,
-                        require_images)
+from ..sequence import (listed_sequences, BenchmarkSequence, check_row_count, make_sequence, read_boxes, read_flags, require_images)
 
 GROUND_TRUTH = "groundtruth.txt"
 MARKERS = ("absence.label", "cover.label", "meta_info.ini")
@@ -43,14 +42,7 @@ def is_dataset(folder: Path) -> bool:
 
 def dataset_entries(root: Path) -> dict[str, partial]:
     """The sequences of a split folder (in ``list.txt`` order when there is one), or of one sequence folder."""
-    root = Path(root)
-    if is_sequence(root):
-        return {root.name: partial(load_sequence, root)}
-    if (root / "list.txt").is_file():
-        names = read_list(root / "list.txt")
-    else:
-        names = sorted(p.name for p in root.iterdir() if is_sequence(p))
-    return {name: partial(load_sequence, root / name) for name in names}
+    return listed_sequences(root, is_sequence, load_sequence)
 
 
 def load_sequence(folder: Path) -> BenchmarkSequence:

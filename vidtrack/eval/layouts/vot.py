@@ -22,7 +22,7 @@ import numpy as np
 
 from ...errors import DatasetError
 from ...types import split_numbers
-from ..sequence import (BenchmarkSequence, check_row_count, list_images, make_sequence, read_list, read_text,
+from ..sequence import (listed_sequences, BenchmarkSequence, check_row_count, list_images, make_sequence, read_text,
                         require_images)
 
 GROUND_TRUTH = "groundtruth.txt"
@@ -81,14 +81,7 @@ def parse_regions(text: str, *, source: str) -> np.ndarray:
 
 def dataset_entries(root: Path) -> dict[str, partial]:
     """The sequences of a VOT folder (in ``list.txt`` order when there is one), or of one sequence folder."""
-    root = Path(root)
-    if is_sequence(root):
-        return {root.name: partial(load_sequence, root)}
-    if (root / "list.txt").is_file():
-        names = read_list(root / "list.txt")
-    else:
-        names = sorted(p.name for p in root.iterdir() if is_sequence(p))
-    return {name: partial(load_sequence, root / name) for name in names}
+    return listed_sequences(root, is_sequence, load_sequence)
 
 
 def load_sequence(folder: Path) -> BenchmarkSequence:
