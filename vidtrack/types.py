@@ -146,10 +146,18 @@ class Box:
 
 @dataclass(frozen=True)
 class Frame:
-    """One decoded frame: ``index`` (0-based) and ``image`` ``(H, W, 3) uint8`` BGR."""
+    """One decoded frame: ``index`` (0-based) and ``image`` ``(H, W, 3) uint8`` BGR.
+
+    ``timestamp`` is the source's presentation time in seconds (a video's or
+    a stream's clock; None for image folders), ``arrival`` the
+    :func:`time.monotonic` second at which a live source received the frame
+    (None for files): latency is measured from it.
+    """
 
     index: int
     image: np.ndarray
+    timestamp: float | None = None
+    arrival: float | None = None
 
     @property
     def height(self) -> int:
