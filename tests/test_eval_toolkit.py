@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import json
+
 import numpy as np
 import pytest
 
@@ -21,6 +23,8 @@ def _run(data, out, *extra):
 def test_frame_times_spread_the_run_over_its_tracked_rows():
     record = {"tracked": [2, 5], "frames": 3, "track_seconds": 0.3}
     assert frame_times(record, 6) == pytest.approx([0, 0, 0.1, 0.1, 0.1, 0])
+    record["frame_seconds"] = [0.2, 0.05, 0.05]  # each tracked row's own time
+    assert frame_times(record, 6) == pytest.approx([0, 0, 0.2, 0.05, 0.05, 0])
     with pytest.raises(ValueError, match="vot"):
         toolkit_paths("out", "vot", "f", "s")
 
@@ -43,6 +47,10 @@ def test_got10k_val_and_test_in_the_submission_layout(tmp_path):
     assert np.all(test[1:, 2:] > 0)                           # every later frame tracked
     val_times = np.loadtxt(base / "GOT-10k_Val_000001" / "GOT-10k_Val_000001_time.txt")
     assert np.all(val_times[:6] > 0) and np.all(val_times[6:] == 0)  # --max-frames 6
+    record = json.loads((out / "kalman-cv" / "GOT-10k_Val_000001.json").read_text())
+    assert val_times[:6] == pytest.approx(record["frame_seconds"], abs=1e-8)  # each frame's own time
+    assert len(set(record["frame_seconds"])) > 1                              # not one mean repeated
+    assert sum(record["frame_seconds"]) == pytest.approx(record["track_seconds"], rel=0.2)
 
 
 def test_otb_and_uav123_one_file_per_sequence_vot_none(tmp_path):

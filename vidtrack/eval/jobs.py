@@ -24,6 +24,7 @@ from ..types import Box, Frame, TrackState
 from ..version import __version__
 from . import confidence as conf
 from .datasets import BenchmarkSequence
+from .frame_times import FrameTimer
 from .results import NOT_TRACKED, RECORD_VERSION
 
 
@@ -134,7 +135,7 @@ def track_job(job: Job) -> JobOutput:
     # reset it so a job's result does not depend on which jobs ran before it in this process
     cv2.setRNGSeed(job.seed)
     settings = dict(job.settings)
-    tracker = build_tracker(job.filter_name, seed=job.seed, settings=settings)
+    tracker = FrameTimer(build_tracker(job.filter_name, seed=job.seed, settings=settings))  # each frame's seconds
     source = ImageFolderSource(sequence.path, files=list(sequence.files[start:stop]))
     init_box = sequence.to_pixels(sequence.ground_truth_box(start))
     collector = _Collector()
@@ -175,6 +176,7 @@ def track_job(job: Job) -> JobOutput:
         "lost_frames": result.lost_frames,
         "track_seconds": result.track_seconds,
         "fps": result.fps,
+        "frame_seconds": tracker.per_frame(result.frames),  # the tracker's seconds per tracked row, in order
         "rerun": job.rerun_path,
     }
     if result.skipped:  # frames that did not decode: the tracker predicted through them (rows 0-based)

@@ -8,10 +8,11 @@ Running (:mod:`vidtrack.eval.running`) writes them and scoring
                                     sequence's own convention; rows not tracked
                                     (outside the MIL frames range, before the init
                                     frame, past --max-frames) are 0,0,0,0
-    OUT/<filter>/<Sequence>.json    the run record: fps of *that* run, tracked rows,
-                                    seed, max_frames, the tracker's effective settings
-                                    (every option of its configuration), so a resumed
-                                    evaluation reports honest fps and reuses only
+    OUT/<filter>/<Sequence>.json    the run record: fps of *that* run and the tracker's
+                                    seconds on each tracked row (frame_seconds), tracked
+                                    rows, seed, max_frames, the tracker's effective
+                                    settings (every option of its configuration), so a
+                                    resumed evaluation reports honest fps and reuses only
                                     results made the same way
     OUT/<filter>/<Sequence>.confidence.csv  the tracker's per-frame confidence and
                                     status (:mod:`vidtrack.eval.confidence`)

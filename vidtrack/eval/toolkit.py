@@ -9,11 +9,13 @@
     OUT/toolkit/got10k/<filter>/<seq>/<seq>_time.txt seconds per frame
 
 ``OUT/toolkit/got10k/<filter>/`` zipped as it is is a GOT-10k test-split
-submission.  The run records keep a run's total tracking time, not each
-frame's: every tracked frame's time is the run's mean time per frame; rows not
-tracked (``--max-frames``) have time 0 and the box ``0,0,0,0``, which the
-toolkits skip or score as failures.  MIL and VOT sequences have no such
-folder (VOT's toolkit runs the tracker itself, over TraX).
+submission.  Each tracked frame's time is the tracker's seconds on that frame
+(the run record's ``frame_seconds``, :mod:`vidtrack.eval.frame_times`; the
+first line is the initialisation); a record without them (written by an
+earlier vidtrack) gives every tracked frame the run's mean time per frame.
+Rows not tracked (``--max-frames``) have time 0 and the box ``0,0,0,0``,
+which the toolkits skip or score as failures.  MIL and VOT sequences have no
+such folder (VOT's toolkit runs the tracker itself, over TraX).
 """
 
 from __future__ import annotations
@@ -47,11 +49,22 @@ def toolkit_paths(out: str | Path, layout: str, filter_name: str, sequence_name:
 
 
 def frame_times(record: Mapping[str, Any], rows: int) -> list[float]:
-    """Seconds per ground-truth row: the run's mean time per frame on its tracked rows, 0 elsewhere."""
+    """Seconds per ground-truth row: each tracked row's time, 0 on the rows not tracked.
+
+    The times are the record's ``frame_seconds`` (one per tracked row, in
+    order); a record without them, or with another count, gives every
+    tracked row the run's mean time per frame.
+    """
     start, stop = record["tracked"]
+    times = [0.0] * rows
+    recorded = record.get("frame_seconds")
+    if isinstance(recorded, list) and len(recorded) == stop - start:
+        times[start:stop] = (float(t) for t in recorded)
+        return times
     frames = max(int(record.get("frames") or 0), 1)
     each = float(record.get("track_seconds") or 0.0) / frames
-    return [each if start <= row < stop else 0.0 for row in range(rows)]
+    times[start:stop] = [each] * (stop - start)
+    return times
 
 
 def write_toolkit_results(out: str | Path, sequences: Sequence[BenchmarkSequence], filters: Sequence[str],
