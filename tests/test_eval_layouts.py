@@ -14,6 +14,7 @@ from vidtrack.cli import main as vidtrack_main
 from vidtrack.errors import DatasetError
 from vidtrack.eval.datasets import detect_layout, load_dataset, read_dataset
 from vidtrack.eval.layouts.vot import region_to_box
+from vidtrack.eval.scoring import score_result
 
 pytestmark = pytest.mark.skipif(not SEQUENCES.is_dir(), reason="shared benchmark sequences not present")
 
@@ -50,7 +51,25 @@ def test_lasot_flags(tmp_path):
     assert seq.origin == 1 and seq.layout == "lasot" and len(seq) == FRAMES
     assert np.flatnonzero(seq.occluded).tolist() == [6] and np.flatnonzero(seq.absent).tolist() == [9]
     assert np.flatnonzero(~seq.present).tolist() == [6, 9]
+    assert np.flatnonzero(~seq.annotated).tolist() == [6, 9]  # not scored, as LaSOT's toolkit removes them
     assert list(_by_name(data / "person" / "person-2")) == ["person-2"]
+
+
+def test_lasot_frames_without_a_visible_target_are_not_scored(tmp_path):
+    data = build_lasot(tmp_path)
+    _, girl_gt = shared("Girl")
+    seq = _by_name(data)["person-1"]
+    result = girl_gt.copy()
+    result[[6, 9], :2] += 200  # far off on the fully occluded (6) and out-of-view (9) frames only
+    path = tmp_path / "person-1.txt"
+    np.savetxt(path, result, fmt="%g", delimiter=",")
+    row = score_result(seq, path, None).metrics
+    assert row["precision20"] == 1.0 and row["norm_precision"] == 1.0 and row["center_error"] == 0.0
+    assert row["pascal"] == 1.0
+    (data / "person/person-1/full_occlusion.txt").write_text(",".join(["0"] * FRAMES) + "\n")
+    (data / "person/person-1/out_of_view.txt").write_text(",".join(["0"] * FRAMES) + "\n")
+    row = score_result(_by_name(data)["person-1"], path, None).metrics  # no flags: both frames scored
+    assert row["precision20"] == pytest.approx(10 / 12) and row["center_error"] > 0
 
 
 def test_got10k_val_and_test(tmp_path):

@@ -37,7 +37,9 @@ class BenchmarkSequence:
         Image files, one per ground-truth row, in order.
     ground_truth
         ``(N, 4)`` float array of ``x, y, w, h`` rows in the sequence's own
-        convention (read-only; ``NaN`` rows are not annotated).
+        convention (read-only; ``NaN`` rows are not annotated: UAV123's rows
+        while the target is out of view, LaSOT's frames flagged fully occluded
+        or out of view).
     origin
         1 for 1-based pixels (OTB, LaSOT, UAV123), 0 for 0-based (MIL,
         GOT-10k, VOT).

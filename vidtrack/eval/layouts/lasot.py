@@ -9,7 +9,11 @@
     airplane/airplane-1/nlp.txt                ignored
 
 The dataset folder may be the LaSOT root (class folders), one class folder,
-or one sequence folder.
+or one sequence folder.  A frame flagged in ``full_occlusion.txt`` or
+``out_of_view.txt`` is not scored: its ground-truth row is read as not
+annotated (``NaN``), as LaSOT's toolkit removes those frames before it scores
+a sequence (its ``calc_seq_err_robust``; the toolkit still divides by every
+frame of the sequence, see docs/evaluation.md).
 """
 
 from __future__ import annotations
@@ -17,6 +21,8 @@ from __future__ import annotations
 import re
 from functools import partial
 from pathlib import Path
+
+import numpy as np
 
 from ..sequence import BenchmarkSequence, check_row_count, make_sequence, read_boxes, read_flags, require_images
 
@@ -73,4 +79,9 @@ def load_sequence(folder: Path) -> BenchmarkSequence:
     for key, file in (("occluded", "full_occlusion.txt"), ("absent", "out_of_view.txt")):
         path = folder / file
         flags[key] = read_flags(path, len(images)) > 0 if path.is_file() else None
+    hidden = np.zeros(len(images), dtype=bool)
+    for marked in flags.values():
+        if marked is not None:
+            hidden |= marked
+    boxes[hidden] = np.nan  # the target is not visible: no metric scores the frame
     return make_sequence(name, folder, images, boxes, GROUND_TRUTH, origin=1, layout="lasot", **flags)
