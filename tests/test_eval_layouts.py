@@ -153,10 +153,19 @@ def test_eval_one_bad_sequence_among_good_ones(tmp_path, capsys):
     out = tmp_path / "out"
     code = vidtrack_main(["eval", str(data), "--filter", "kalman-cv", "--out", str(out), "--in-process",
                           "--no-plots", "--max-frames", "4"])
-    err = capsys.readouterr().err
+    captured = capsys.readouterr()
+    err = captured.err
     assert code == 1
     summary = json.loads((out / "summary.json").read_text())
-    assert set(summary["kalman-cv"]) == {"girl", "mean"} and summary["kalman-cv"]["girl"]["auc"] > 0
+    assert list(summary["kalman-cv"]) == ["girl", "girl2", "mean"] and summary["kalman-cv"]["girl"]["auc"] > 0
+    bad = summary["kalman-cv"]["girl2"]  # the unreadable sequence is that sequence's error, with the reason
+    assert bad["auc"] is None and bad["error"].startswith("sequence girl2: ")
+    assert "groundtruth.txt, line 1: expected 4 numbers or a polygon" in bad["error"]
+    mean = summary["kalman-cv"]["mean"]
+    assert mean["failed"] == ["girl2"] and mean["auc"] == summary["kalman-cv"]["girl"]["auc"]
+    assert "FAILED: sequence girl2: " in (out / "summary.md").read_text()
+    assert "FAILED: sequence girl2: " in captured.out  # the printed table
+    assert not list(out.glob("*.part"))  # written whole through a temporary file
     last = err.strip().splitlines()[-1]
     assert last.startswith("vidtrack eval: 1 sequence(s) could not be read: sequence girl2: ")
     assert "groundtruth.txt, line 1: expected 4 numbers or a polygon" in last

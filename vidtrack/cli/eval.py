@@ -149,7 +149,8 @@ def main(argv: list[str]) -> int:
     evaluation = run_evaluation(sequences, filters, args.out, seed=args.seed, max_frames=args.max_frames,
                                 settings=settings, force=args.force, workers=args.jobs, scheduler=args.scheduler,
                                 isolate=not args.in_process, rerun_dir=args.rerun,
-                                progress=None if args.quiet else progress_bar, on_output=report)
+                                progress=None if args.quiet else progress_bar, on_output=report,
+                                unreadable=reading.errors)
     per_attribute = by_attribute(evaluation.summary, attributes) if attributes else None
     json_path, md_path = write_summary(args.out, evaluation.summary, per_attribute)
     written = [json_path, md_path, *write_toolkit_results(args.out, sequences, filters, evaluation.records)]

@@ -18,7 +18,7 @@ import numpy as np
 from .datasets import BenchmarkSequence
 from .jobs import Job, JobOutput
 from .running import run_jobs
-from .scoring import score_results
+from .scoring import failed_row, score_results
 
 
 @dataclass
@@ -26,8 +26,9 @@ class Evaluation:
     """Everything an evaluation produced.
 
     ``summary`` is ``{filter: {sequence: {auc, precision20, pascal,
-    center_error, fps}, ..., "mean": {...}}}`` (failed sequences have
-    ``None`` metrics and an ``error``); ``curves`` maps ``(filter,
+    center_error, fps}, ..., "mean": {...}}}`` (failed sequences, and those
+    that could not be read, have ``None`` metrics and an ``error``: the
+    reason); ``curves`` maps ``(filter,
     sequence)`` to ``(success, precision)`` curves; ``status`` maps it to
     ``done``, ``reused`` or ``failed``; ``records`` maps each pair that did
     not fail to its run record.
@@ -57,7 +58,8 @@ def run_evaluation(sequences: list[BenchmarkSequence], filters: list[str], out: 
                    seed: int = 0, max_frames: int | None = None, settings: Mapping[str, Any] | None = None,
                    force: bool = False, workers: int = 1, scheduler: str | None = None, isolate: bool = True,
                    rerun_dir: str | Path | None = None, progress: Callable[..., Any] | None = None,
-                   on_output: Callable[[JobOutput], None] | None = None) -> Evaluation:
+                   on_output: Callable[[JobOutput], None] | None = None,
+                   unreadable: Mapping[str, str] | None = None) -> Evaluation:
     """Run every filter on every sequence (reusing earlier results) and score the result files.
 
     Parameters
@@ -85,6 +87,10 @@ def run_evaluation(sequences: list[BenchmarkSequence], filters: list[str], out: 
         None: no progress bars.
     on_output
         Called with each job's output as it finishes (reused ones included).
+    unreadable
+        ``{sequence name: reason}`` of the dataset's sequences that could not
+        be read (:class:`~vidtrack.eval.datasets.DatasetReading`): each is a
+        failed row of every filter in the summary, with its reason.
     """
     jobs = make_jobs(sequences, filters, seed=seed, max_frames=max_frames, settings=settings, rerun_dir=rerun_dir,
                      progress=progress)
@@ -93,4 +99,24 @@ def run_evaluation(sequences: list[BenchmarkSequence], filters: list[str], out: 
     records = {key: output.record for key, output in outputs.items() if output.status != "failed"}
     errors = {key: output.error or "failed" for key, output in outputs.items() if output.status == "failed"}
     summary, curves = score_results(sequences, filters, out, records, errors)
+    summary = with_unreadable(summary, unreadable or {})
     return Evaluation(summary, curves, {key: output.status for key, output in outputs.items()}, records)
+
+
+def with_unreadable(summary: dict[str, dict[str, dict[str, Any]]], unreadable: Mapping[str, str]
+                    ) -> dict[str, dict[str, dict[str, Any]]]:
+    """``summary`` with a failed row (no metrics, ``error``: the reason) per unreadable sequence and filter.
+
+    The rows come after the scored sequences and before ``mean``, whose
+    ``failed`` list names them too; the mean of the metrics is unchanged.
+    """
+    if not unreadable:
+        return summary
+    result = {}
+    for name, rows in summary.items():
+        rows = {sequence: row for sequence, row in rows.items() if sequence != "mean"}
+        rows.update((sequence, failed_row(reason)) for sequence, reason in unreadable.items() if sequence not in rows)
+        mean = dict(summary[name].get("mean", {}))
+        mean["failed"] = [*mean.get("failed", []), *(s for s in unreadable if s not in mean.get("failed", []))]
+        result[name] = {**rows, "mean": mean}
+    return result

@@ -148,14 +148,16 @@ def write_summary(out: str | Path, summary: dict[str, dict[str, dict[str, Any]]]
     if by_attribute and any(by_attribute.values()):
         extra += ("\n" + format_attribute_table(by_attribute, summary) + "\n\nMean success AUC over the "
                   "sequences carrying each OTB attribute (their number in brackets).\n")
+    from .results import write_atomic  # whole files or none: a reader never sees half a summary
+
     try:
         out.mkdir(parents=True, exist_ok=True)
-        json_path.write_text(json.dumps(_finite_or_none(document), indent=2) + "\n", encoding="utf-8")
-        md_path.write_text("# vidtrack evaluation\n\n" + format_table(summary) + "\n\n"
+        write_atomic(json_path, json.dumps(_finite_or_none(document), indent=2) + "\n")
+        write_atomic(md_path, "# vidtrack evaluation\n\n" + format_table(summary) + "\n\n"
                            "AUC: OTB success AUC (mean over IoU thresholds 0, 0.05, ..., 1); Prec@20: fraction "
                            "of frames with centre error <= 20 px; PASCAL: fraction with IoU > 0.5; CLE: mean "
                            "centre-location error; fps: tracker frames per second, decoding excluded. Only "
-                           "annotated ground-truth frames are scored.\n" + extra, encoding="utf-8")
+                           "annotated ground-truth frames are scored.\n" + extra)
     except OSError as exc:
         raise OutputError(f"cannot write the summary in {out}: {exc.strerror or exc}") from None
     return json_path, md_path
