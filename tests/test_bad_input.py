@@ -248,3 +248,63 @@ def test_bad_input(case, tmp_path, capfd, monkeypatch):
     assert expected in lines[0], lines[0]
     assert lines[0].startswith("vidtrack"), lines[0]
     assert sorted(os.listdir(files["out"])) == [], "bad input left a file behind"
+
+
+# -- vidtrack eval on benchmark layouts: each case its own argv, expected text and documented exit code
+#: (argv with {placeholders} of :func:`layout_files`, text the one stderr line must contain, exit code).
+#: Exit 2: nothing could be evaluated; exit 1: the sequences that can be read are, the others named.
+EVAL_LAYOUT_CASES: dict[str, tuple[list[str], str, int]] = {
+    "eval: unknown --layout": (["{data}", "--layout", "nope"], "argument --layout: invalid choice: 'nope'", 2),
+    "eval: --layout the folder is not": (["{data}", "--layout", "lasot"], "no lasot sequences in", 2),
+    "eval: unknown --subset": (["{data}", "--subset", "otb99"], "argument --subset: invalid choice: 'otb99'", 2),
+    "eval: --sequences list.txt naming a missing sequence": (["{data}", "--sequences", "{names}"],
+                                                             "unknown sequence 'Missing'; sequences in", 2),
+    "eval: --sequences list file that names nothing": (["{data}", "--sequences", "{no_names}"], "names no sequence", 2),
+    "eval: a dataset's list.txt naming only a missing folder": (["{vot_missing}"], "sequence b: no such folder", 2),
+    "eval: a dataset's list.txt naming a missing folder among good ones": (
+        ["{vot_partly}"], "1 sequence(s) could not be read: sequence b: no such folder", 1),
+    "eval: a folder with no recognisable layout": (["{odd}"], "expected one of the layouts", 2),
+}
+
+
+def layout_files(tmp: Path) -> dict[str, str]:
+    """The datasets :data:`EVAL_LAYOUT_CASES` name, made in ``tmp``."""
+    files = {"out": str(tmp / "out"), "data": str(_sequence(tmp / "data", "Good", ["10,10,20,20"] * 3).parent)}
+    (tmp / "out").mkdir()
+    (tmp / "names.txt").write_text("Good\nMissing\n")
+    files["names"] = str(tmp / "names.txt")
+    (tmp / "no_names.txt").write_text("# only a comment\n\n")
+    files["no_names"] = str(tmp / "no_names.txt")
+    for name, listed in (("vot_missing", "b\n"), ("vot_partly", "a\nb\n")):
+        _frames(tmp / name / "a" / "color", [(64, 48)] * 3)
+        (tmp / name / "a" / "groundtruth.txt").write_text("10,10,20,20\n" * 3)
+        (tmp / name / "list.txt").write_text(listed)
+        files[name] = str(tmp / name)
+    _frames(tmp / "odd" / "pictures", [(64, 48)] * 2)   # images, but no ground truth of any layout
+    (tmp / "odd" / "notes.txt").write_text("10,10,20,20\n")
+    files["odd"] = str(tmp / "odd")
+    return files
+
+
+@pytest.mark.parametrize("case", list(EVAL_LAYOUT_CASES))
+def test_eval_bad_layout_input(case, tmp_path, capfd, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    files = layout_files(tmp_path)
+    argv, expected, exit_code = EVAL_LAYOUT_CASES[case]
+    argv = ["eval", *(a.format(**files) for a in argv), "--filter", "kalman-cv", "--out", f"{files['out']}/e",
+            "--in-process", "--no-plots", "-q"]
+    code = run_cli(argv)
+    captured = capfd.readouterr()
+    lines = captured.err.strip().splitlines()
+    assert code == exit_code, captured.err
+    assert len(lines) == 1, captured.err
+    assert "Traceback" not in captured.err
+    assert expected in lines[0], lines[0]
+    assert lines[0].startswith("vidtrack"), lines[0]
+    if exit_code == 2:
+        assert sorted(os.listdir(files["out"])) == [], "bad input left a file behind"
+    else:  # the good sequence scored, the missing one its error in summary.json
+        import json
+
+        summary = json.loads((Path(files["out"]) / "e" / "summary.json").read_text())["kalman-cv"]
+        assert summary["a"]["auc"] > 0 and summary["b"]["error"].startswith("sequence b: no such folder")

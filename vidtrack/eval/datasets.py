@@ -118,6 +118,13 @@ def _matches(entries: dict, name: str) -> list[str]:
     return [n for n in entries if targets.match(n.lower())]
 
 
+def _some(names, shown: int = 12) -> str:
+    """The first ``shown`` names, comma-separated, and how many there are in all when that is more."""
+    names = list(names)
+    more = f" ... ({len(names)} in all)" if len(names) > shown else ""
+    return ", ".join(names[:shown]) + more
+
+
 def _choose(entries: dict, names: list[str] | None, dataset: str | Path, *, subset: str | None = None
             ) -> tuple[list[str], dict[str, str]]:
     """The entries ``names`` select, in order, and ``{name: reason}`` for subset names not in the dataset."""
@@ -128,7 +135,7 @@ def _choose(entries: dict, names: list[str] | None, dataset: str | Path, *, subs
     for name in names:
         found = _matches(entries, name)
         if not found and subset is None:
-            raise DatasetError(f"unknown sequence {name!r}; sequences in {dataset}: {', '.join(entries)}")
+            raise DatasetError(f"unknown sequence {name!r}; sequences in {dataset}: {_some(entries)}")
         if not found:
             missing[name] = f"sequence {name}: not in {dataset} (a sequence of the subset {subset})"
         chosen += [n for n in found if n not in chosen]
