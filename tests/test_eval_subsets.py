@@ -76,7 +76,11 @@ def test_eval_sequences_from_a_list_file_and_a_subset(tmp_path, capsys):
     out = tmp_path / "out-otb"
     assert vidtrack_main(["eval", str(otb), "--subset", "otb2013", "--out", str(out), *common]) == 1
     summary = json.loads((out / "summary.json").read_text())["kalman-cv"]
-    assert set(summary) == {"David", "Jogging-1", "Jogging-2", "mean"}
+    scored = {name for name, row in summary.items() if "error" not in row}
+    assert scored == {"David", "Jogging-1", "Jogging-2", "mean"}
+    missing = {name: row["error"] for name, row in summary.items() if "error" in row}  # each named with its reason
+    assert len(missing) == 48 and missing["Basketball"].startswith("sequence Basketball: not in")
+    assert sorted(summary["mean"]["failed"]) == sorted(missing)
     last = capsys.readouterr().err.strip().splitlines()[-1]
     assert last.startswith("vidtrack eval: 48 sequence(s) could not be read: sequence Basketball: not in")
 
