@@ -3,7 +3,10 @@
 
 Figures compared (vidtrack key <- got10k key): OTB and UAV123 per sequence and overall ``auc`` <-
 ``success_score``, ``precision20`` <- ``precision_score``, ``pascal`` <- ``success_rate``; GOT-10k
-val ``ao`` <- ``ao`` and ``sr50`` <- ``sr``.  got10k 0.1.3 has no LaSOT experiment and no SR0.75.
+val ``ao`` <- ``ao`` and ``sr50`` <- ``sr``.  got10k 0.1.3 has no LaSOT experiment and no SR0.75.  Its
+GOT-10k speed, the mean over frames of 1 / (seconds), is read from the ``<seq>_time.txt`` files vidtrack
+writes: it equals that mean of the run records' ``frame_seconds`` (vidtrack's own ``fps`` is frames over
+total seconds, another figure).
 """
 
 from __future__ import annotations
@@ -105,9 +108,15 @@ def test_got10k_val_agrees_with_the_got10k_toolkit(tmp_path, shifted):
     shutil.copytree(tmp_path / "out" / "toolkit" / "got10k" / TRACKER,
                     tmp_path / "got10k-results" / "GOT-10k" / TRACKER)
     theirs = _reference("got10k", data.parent, tmp_path / "got10k-results")
+    pooled = []
     for name, row in ours.items():
         reference = theirs["overall"] if name == "mean" else theirs["seq_wise"][name]
         assert row["ao"] == pytest.approx(reference["ao"], abs=1e-6), name
         assert row["sr50"] == pytest.approx(reference["sr"], abs=1e-6), name
+        if name != "mean":  # the toolkit reads each frame's time from <seq>_time.txt: its speed is mean(1 / t)
+            times = np.array(json.loads((tmp_path / "out" / TRACKER / f"{name}.json").read_text())["frame_seconds"])
+            pooled.append(times)
+            assert reference["speed_fps"] == pytest.approx(np.mean(1 / times), rel=1e-3), name
+    assert theirs["overall"]["speed_fps"] == pytest.approx(np.mean(1 / np.concatenate(pooled)), rel=1e-3)
     if shifted:
         assert 0 < ours["mean"]["sr50"] < 1
