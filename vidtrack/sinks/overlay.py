@@ -186,12 +186,16 @@ def _corners(box: Box) -> tuple[tuple[int, int], tuple[int, int]]:
 
 
 def draw_box(image: np.ndarray, box: Box | None, colour, thickness: int, *, dashed: bool = False) -> None:
-    """A rectangle for ``box`` (nothing for ``None`` or an empty box), solid or dashed, in place."""
+    """A rectangle for ``box`` (nothing for ``None`` or an empty box), solid or dashed, in place.
+
+    Drawn without anti-aliasing: the edges are axis-aligned on whole pixels,
+    so they keep the exact colour.
+    """
     if box is None or not box.is_valid():
         return
     (x0, y0), (x1, y1) = _corners(box)
     if not dashed:
-        cv2.rectangle(image, (x0, y0), (x1, y1), colour, thickness, cv2.LINE_AA)
+        cv2.rectangle(image, (x0, y0), (x1, y1), colour, thickness, cv2.LINE_8)
         return
     dash = max(4, 4 * thickness)
     for (ax, ay), (bx, by) in (((x0, y0), (x1, y0)), ((x1, y0), (x1, y1)), ((x1, y1), (x0, y1)), ((x0, y1), (x0, y0))):
@@ -201,7 +205,7 @@ def draw_box(image: np.ndarray, box: Box | None, colour, thickness: int, *, dash
             t0, t1 = start / max(1, length), end / max(1, length)
             p = (int(round(ax + (bx - ax) * t0)), int(round(ay + (by - ay) * t0)))
             q = (int(round(ax + (bx - ax) * t1)), int(round(ay + (by - ay) * t1)))
-            cv2.line(image, p, q, colour, thickness, cv2.LINE_AA)
+            cv2.line(image, p, q, colour, thickness, cv2.LINE_8)
 
 
 def lighter(colour, amount: float = 0.45) -> tuple[int, int, int]:
