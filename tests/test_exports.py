@@ -204,3 +204,29 @@ def test_hard_stop_keeps_every_line_and_the_xml_up_to_its_last_rewrite(tmp_path)
     assert stop - batch <= len(frames[0]) <= stop, len(frames[0])
     assert int(root.findtext("meta/task/size")) == len(frames[0])
     assert [p.name for p in tmp_path.iterdir() if p.name.endswith(".tmp")] == []
+
+
+def test_a_failed_rewrite_keeps_the_last_document(tmp_path, monkeypatch):
+    """A full disk during a rewrite: WriteFailed, the file stays the last complete document, no temporary left."""
+    import errno
+
+    from vidtrack.sinks import exports
+    from vidtrack.sinks.base import WriteFailed
+
+    run = _run()
+    image = np.zeros((SIZE[1], SIZE[0], 3), np.uint8)
+    sink = open_export(tmp_path / "run.xml", "cvat", batch=1)
+    for k in range(5):
+        sink.write(Frame(k, image), run[k])
+    sink.flush()                                        # a rewrite with these 5 frames
+    before = (tmp_path / "run.xml").read_bytes()
+    sink.write(Frame(5, image), run[5])
+
+    def full(src, dst):
+        raise OSError(errno.ENOSPC, "No space left on device")
+    monkeypatch.setattr(exports.os, "replace", full)
+    with pytest.raises(WriteFailed, match="No space left"):
+        sink.flush()                                    # the rewrite with frame 5 fails
+    assert (tmp_path / "run.xml").read_bytes() == before
+    assert ET.fromstring(before).find("meta/task/size").text == "5"
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["run.xml"]

@@ -231,6 +231,10 @@ class CvatExport:
         self._last_write = time.monotonic()
         self._write_cost = self._last_write - start
 
-    def close(self) -> None:
+    def flush(self) -> None:
+        """Rewrite the file now with every frame written so far (if any is missing from it)."""
         if self._pending:
             self._rewrite()
+
+    def close(self) -> None:
+        self.flush()
