@@ -230,3 +230,15 @@ def test_a_failed_rewrite_keeps_the_last_document(tmp_path, monkeypatch):
     assert (tmp_path / "run.xml").read_bytes() == before
     assert ET.fromstring(before).find("meta/task/size").text == "5"
     assert sorted(p.name for p in tmp_path.iterdir()) == ["run.xml"]
+
+
+@pytest.mark.parametrize("fmt,name", [("cvat", "run.xml"), ("mot", "run.txt"), ("jsonl", "run.jsonl")])
+def test_a_single_state_is_target_1(tmp_path, fmt, name):
+    image = np.zeros((SIZE[1], SIZE[0], 3), np.uint8)
+    state = TrackState(0, Box(1, 2, 3, 4), 0.5, "tracking")
+    for folder, targets in (("single", state), ("mapping", {1: state})):
+        (tmp_path / folder).mkdir()
+        sink = open_export(tmp_path / folder / name, fmt)
+        sink.write(Frame(0, image), targets)
+        sink.close()
+    assert (tmp_path / "single" / name).read_bytes() == (tmp_path / "mapping" / name).read_bytes()

@@ -40,6 +40,7 @@ from ..types import Frame, TrackState
 from .base import LineFile, failed_write
 from .files import format_box
 from .palette import target_colour
+from .video import as_targets
 
 #: The export formats, by the name ``--export-format`` takes.
 EXPORT_FORMATS = ("cvat", "mot", "jsonl")
@@ -106,7 +107,8 @@ class MotExport:
         self.path = Path(path)
         self._file = LineFile(self.path)
 
-    def write(self, frame: Frame, targets: Mapping[int, TrackState]) -> None:
+    def write(self, frame: Frame, targets: Mapping[int, TrackState] | TrackState) -> None:
+        targets = as_targets(targets)
         lines = [f"{frame.index + 1},{target_id},{format_box(state.box)},{state.confidence:.4f},-1,-1,-1"
                  for target_id, state in sorted(targets.items())]
         if lines:
@@ -123,7 +125,8 @@ class JsonLinesExport:
         self.path = Path(path)
         self._file = LineFile(self.path)
 
-    def write(self, frame: Frame, targets: Mapping[int, TrackState]) -> None:
+    def write(self, frame: Frame, targets: Mapping[int, TrackState] | TrackState) -> None:
+        targets = as_targets(targets)
         lines = [json.dumps({"frame": frame.index, "id": target_id,
                              "box": [round(float(v), 2) for v in state.box.as_array()],
                              "confidence": round(float(state.confidence), 4), "status": state.status})
@@ -200,7 +203,8 @@ class CvatExport:
         self._last_write = time.monotonic()
         self._write_cost = 0.0
 
-    def write(self, frame: Frame, targets: Mapping[int, TrackState]) -> None:
+    def write(self, frame: Frame, targets: Mapping[int, TrackState] | TrackState) -> None:
+        targets = as_targets(targets)
         if self.size is None:
             self.size = (frame.width, frame.height)
         for target_id in sorted(set(self._last) - set(targets)):   # gone: the track ends here

@@ -99,9 +99,11 @@ def _blend(image: np.ndarray, alpha: np.ndarray, colour, x: int, y: int) -> None
     x0, y0, x1, y1 = max(0, x), max(0, y), min(W, x + w), min(H, y + h)
     if x0 >= x1 or y0 >= y1:
         return
-    a = alpha[y0 - y:y1 - y, x0 - x:x1 - x, None]
-    roi = image[y0:y1, x0:x1].astype(np.float32)
-    image[y0:y1, x0:x1] = np.round(roi * (1.0 - a) + np.asarray(colour, np.float32) * a).astype(np.uint8)
+    a = np.ascontiguousarray(alpha[y0 - y:y1 - y, x0 - x:x1 - x])
+    roi = image[y0:y1, x0:x1]
+    paint = np.empty_like(roi)
+    paint[:] = colour
+    image[y0:y1, x0:x1] = cv2.blendLinear(paint, roi, a, 1.0 - a)    # colour * a + image * (1 - a)
 
 
 def draw_text(image: np.ndarray, text: str, x: int, y: int, style: TextStyle, *,
