@@ -11,12 +11,17 @@ VOT_BIN  := $(VOT_VENV)/bin
 # it is the benchmarks' Python toolkit, kept apart from vidtrack's dependencies.
 GOT10K_VENV ?= .venv-got10k
 GOT10K_BIN  := $(GOT10K_VENV)/bin
+# Datumaro reads vidtrack's CVAT and MOT exports back in tests/test_exports.py: a venv of its own, since it
+# depends on opencv-python-headless, which must never share one with vidtrack's OpenCV.
+DATUMARO_VENV ?= .venv-datumaro
+DATUMARO_BIN  := $(DATUMARO_VENV)/bin
 # Every install takes the tested versions from these files (`make constraints` rewrites them).
 CONSTRAINTS     ?= constraints.txt
 VOT_CONSTRAINTS ?= constraints-vot.txt
 GOT10K_CONSTRAINTS ?= constraints-got10k.txt
+DATUMARO_CONSTRAINTS ?= constraints-datumaro.txt
 
-.PHONY: demo test lint install install-dev vot-env got10k-env constraints sample clean
+.PHONY: demo test lint install install-dev vot-env got10k-env datumaro-env constraints sample clean
 
 $(BIN)/python:
 	$(PYTHON) -m venv $(VENV)
@@ -43,10 +48,17 @@ $(GOT10K_VENV)/.installed: $(GOT10K_CONSTRAINTS)
 	$(GOT10K_BIN)/python -m pip install --quiet -c $(GOT10K_CONSTRAINTS) got10k six
 	touch $@
 
+$(DATUMARO_VENV)/.installed: $(DATUMARO_CONSTRAINTS)
+	$(PYTHON) -m venv $(DATUMARO_VENV)
+	$(DATUMARO_BIN)/python -m pip install --quiet --upgrade pip
+	$(DATUMARO_BIN)/python -m pip install --quiet -c $(DATUMARO_CONSTRAINTS) datumaro
+	touch $@
+
 install: $(VENV)/.installed
 install-dev: $(VENV)/.installed-dev
 vot-env: $(VOT_VENV)/.installed
 got10k-env: $(GOT10K_VENV)/.installed
+datumaro-env: $(DATUMARO_VENV)/.installed
 
 # After adding or upgrading a dependency: install it, run `make test`, then `make constraints`.
 constraints: $(BIN)/python
@@ -56,7 +68,9 @@ constraints: $(BIN)/python
 	   $(VOT_BIN)/python -m pip freeze; } > $(VOT_CONSTRAINTS); fi
 	@if [ -x $(GOT10K_BIN)/python ]; then { echo "# The got10k toolkit's own venv (make got10k-env), the reference of vidtrack eval's scores."; \
 	   $(GOT10K_BIN)/python -m pip freeze; } > $(GOT10K_CONSTRAINTS); fi
-	@echo "constraints: wrote $(CONSTRAINTS)$$([ -x $(VOT_BIN)/python ] && echo " and $(VOT_CONSTRAINTS)")$$([ -x $(GOT10K_BIN)/python ] && echo " and $(GOT10K_CONSTRAINTS)")"
+	@if [ -x $(DATUMARO_BIN)/python ]; then { echo "# Datumaro's own venv (make datumaro-env): the independent reader of vidtrack's CVAT and MOT exports."; \
+	   $(DATUMARO_BIN)/python -m pip freeze; } > $(DATUMARO_CONSTRAINTS); fi
+	@echo "constraints: wrote $(CONSTRAINTS)$$([ -x $(VOT_BIN)/python ] && echo " and $(VOT_CONSTRAINTS)")$$([ -x $(GOT10K_BIN)/python ] && echo " and $(GOT10K_CONSTRAINTS)")$$([ -x $(DATUMARO_BIN)/python ] && echo " and $(DATUMARO_CONSTRAINTS)")"
 
 demo: install
 	@mkdir -p $(OUT)
@@ -70,8 +84,9 @@ lint: install-dev
 	$(BIN)/ruff check vidtrack tests scripts
 	$(BIN)/lint-imports
 
-test: install-dev vot-env got10k-env lint
+test: install-dev vot-env got10k-env datumaro-env lint
 	VIDTRACK_VOT=$(abspath $(VOT_BIN))/vot VIDTRACK_GOT10K=$(abspath $(GOT10K_BIN))/python \
+		VIDTRACK_DATUMARO=$(abspath $(DATUMARO_BIN))/python \
 		$(BIN)/python -m pytest $(PYTEST_ARGS)
 
 sample: install
@@ -88,4 +103,4 @@ browser:
 	  else echo "make: no chromium and not root: the report-rendering test will skip its browser check"; fi
 
 clean:
-	rm -rf $(VENV) $(VOT_VENV) $(GOT10K_VENV) $(OUT) .pytest_cache
+	rm -rf $(VENV) $(VOT_VENV) $(GOT10K_VENV) $(DATUMARO_VENV) $(OUT) .pytest_cache

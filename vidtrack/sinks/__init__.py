@@ -1,1 +1,1 @@
-"""Sinks: where TrackStates go (boxes file, CSV log, annotated video, Rerun)."""
+"""Sinks: where TrackStates go (boxes file, CSV log, exports, annotated video, Rerun)."""

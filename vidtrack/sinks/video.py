@@ -1,4 +1,4 @@
-"""Annotated video sink: the frame with predicted, measured and estimated boxes.
+"""Annotated video sink: every frame with each target's boxes and label (drawn by :mod:`.overlay`).
 
 The only module besides the sources that calls OpenCV's video I/O.
 """
@@ -6,43 +6,18 @@ The only module besides the sources that calls OpenCV's video I/O.
 from __future__ import annotations
 
 from pathlib import Path
+from typing import Mapping
 
 import cv2
-import numpy as np
 
 from ..errors import OutputError
-from ..types import Box, Frame, TrackState
-
-ESTIMATE_COLOUR = (0, 220, 0)       # green: the estimate while tracking
-LOST_COLOUR = (0, 0, 230)           # red: the estimate (prediction) while lost
-MEASURED_COLOUR = (0, 200, 255)     # amber: the raw measurement
-PREDICTED_COLOUR = (255, 160, 0)    # blue: the prior
-REGION_COLOUR = (160, 160, 160)     # grey: the search region
+from ..types import Frame, TrackState
+from .overlay import draw_overlay
 
 
-def _rect(image: np.ndarray, box: Box | None, colour, thickness: int = 1) -> None:
-    if box is None or not box.is_valid():
-        return
-    x, y, w, h = box.as_array()
-    cv2.rectangle(image, (int(round(x)), int(round(y))), (int(round(x + w)), int(round(y + h))),
-                  colour, thickness, cv2.LINE_AA)
-
-
-def annotate(image: np.ndarray, state: TrackState, filter_name: str) -> np.ndarray:
-    """A copy of ``image`` ``(H, W, 3) uint8`` BGR with the state drawn on it."""
-    out = image.copy()
-    _rect(out, state.search_region, REGION_COLOUR)
-    _rect(out, state.predicted, PREDICTED_COLOUR)
-    _rect(out, state.measured, MEASURED_COLOUR)
-    lost = state.status == "lost"
-    _rect(out, state.box, LOST_COLOUR if lost else ESTIMATE_COLOUR, 2)
-    scale = max(0.35, min(out.shape[1], out.shape[0]) / 600.0)
-    text = f"#{state.index} {filter_name} conf {state.confidence:.2f} {state.status}"
-    org = (4, int(14 * scale / 0.35 * 0.9) + 2)
-    cv2.putText(out, text, org, cv2.FONT_HERSHEY_SIMPLEX, scale, (0, 0, 0), 3, cv2.LINE_AA)
-    cv2.putText(out, text, org, cv2.FONT_HERSHEY_SIMPLEX, scale,
-                LOST_COLOUR if lost else (255, 255, 255), 1, cv2.LINE_AA)
-    return out
+def as_targets(targets: Mapping[int, TrackState] | TrackState) -> Mapping[int, TrackState]:
+    """``targets`` as a mapping target ID -> state: a single :class:`TrackState` is target 1."""
+    return {1: targets} if isinstance(targets, TrackState) else targets
 
 
 class AnnotatedVideoSink:
@@ -77,10 +52,12 @@ class AnnotatedVideoSink:
         if not self._writer.isOpened():
             raise OutputError(f"cannot write video {self.path}: no encoder for {self.path.suffix or 'this name'}")
 
-    def write(self, frame: Frame, state: TrackState) -> None:
+    def write(self, frame: Frame, targets: Mapping[int, TrackState] | TrackState) -> None:
+        """Append ``frame`` with every target drawn (target ID -> state; a single state is target 1)."""
         if self._writer is None:
             self._open(frame.width, frame.height)
-        self._writer.write(annotate(frame.image, state, self.filter_name))
+        self._writer.write(draw_overlay(frame.image, as_targets(targets), frame_index=frame.index,
+                                        filter_name=self.filter_name))
 
     def close(self) -> None:
         writer, self._writer = self._writer, None
