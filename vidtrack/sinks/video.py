@@ -77,10 +77,10 @@ class AnnotatedVideoSink:
         if not self._writer.isOpened():
             raise OutputError(f"cannot write video {self.path}: no encoder for {self.path.suffix or 'this name'}")
 
-    def write(self, frame: Frame, state: TrackState) -> None:
+    def write(self, frame: Frame, targets) -> None:
         if self._writer is None:
             self._open(frame.width, frame.height)
-        self._writer.write(annotate(frame.image, state, self.filter_name))
+        self._writer.write(annotate(frame.image, targets[min(targets)], self.filter_name))
 
     def close(self) -> None:
         writer, self._writer = self._writer, None
