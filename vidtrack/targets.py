@@ -178,7 +178,10 @@ class MultiTargetTracker:
     Parameters
     ----------
     trackers
-        Target ID (a positive int) -> its tracker; targets are reported in ascending ID order.
+        Target ID (a positive int) -> its tracker; targets are reported in
+        ascending ID order.  A tracker without ``filter`` and ``measurer``
+        (anything with ``initialize`` and ``step``) is stepped on its own:
+        such targets run side by side but cannot take each other into account.
     config
         The interaction between targets.
     workers
@@ -261,6 +264,8 @@ class MultiTargetTracker:
         if len(self.trackers) == 1:
             (i, tracker), = self.trackers.items()
             states = {i: tracker.step(frame)}
+        elif not all(hasattr(t, "filter") and hasattr(t, "measurer") for t in self.trackers.values()):
+            states = self._map(lambda i: self.trackers[i].step(frame), self.ids)   # opaque trackers: independent
         else:
             states = self._step_all(frame)
         self.seconds += time.perf_counter() - start
