@@ -11,12 +11,16 @@ VOT_BIN  := $(VOT_VENV)/bin
 # it is the benchmarks' Python toolkit, kept apart from vidtrack's dependencies.
 GOT10K_VENV ?= .venv-got10k
 GOT10K_BIN  := $(GOT10K_VENV)/bin
+# TrackEval (HOTA, IDF1, MOTA of several targets) too: it depends on opencv-python.
+TRACKEVAL_VENV ?= .venv-trackeval
+TRACKEVAL_BIN  := $(TRACKEVAL_VENV)/bin
 # Every install takes the tested versions from these files (`make constraints` rewrites them).
 CONSTRAINTS     ?= constraints.txt
 VOT_CONSTRAINTS ?= constraints-vot.txt
 GOT10K_CONSTRAINTS ?= constraints-got10k.txt
+TRACKEVAL_CONSTRAINTS ?= constraints-trackeval.txt
 
-.PHONY: demo test lint install install-dev vot-env got10k-env constraints sample clean
+.PHONY: demo test lint install install-dev vot-env got10k-env trackeval-env constraints sample clean
 
 $(BIN)/python:
 	$(PYTHON) -m venv $(VENV)
@@ -43,10 +47,17 @@ $(GOT10K_VENV)/.installed: $(GOT10K_CONSTRAINTS)
 	$(GOT10K_BIN)/python -m pip install --quiet -c $(GOT10K_CONSTRAINTS) got10k six
 	touch $@
 
+$(TRACKEVAL_VENV)/.installed: $(TRACKEVAL_CONSTRAINTS)
+	$(PYTHON) -m venv $(TRACKEVAL_VENV)
+	$(TRACKEVAL_BIN)/python -m pip install --quiet --upgrade pip
+	$(TRACKEVAL_BIN)/python -m pip install --quiet -c $(TRACKEVAL_CONSTRAINTS) trackeval
+	touch $@
+
 install: $(VENV)/.installed
 install-dev: $(VENV)/.installed-dev
 vot-env: $(VOT_VENV)/.installed
 got10k-env: $(GOT10K_VENV)/.installed
+trackeval-env: $(TRACKEVAL_VENV)/.installed
 
 # After adding or upgrading a dependency: install it, run `make test`, then `make constraints`.
 constraints: $(BIN)/python
@@ -56,6 +67,8 @@ constraints: $(BIN)/python
 	   $(VOT_BIN)/python -m pip freeze; } > $(VOT_CONSTRAINTS); fi
 	@if [ -x $(GOT10K_BIN)/python ]; then { echo "# The got10k toolkit's own venv (make got10k-env), the reference of vidtrack eval's scores."; \
 	   $(GOT10K_BIN)/python -m pip freeze; } > $(GOT10K_CONSTRAINTS); fi
+	@if [ -x $(TRACKEVAL_BIN)/python ]; then { echo "# TrackEval's own venv (make trackeval-env), the scores of several targets."; \
+	   $(TRACKEVAL_BIN)/python -m pip freeze; } > $(TRACKEVAL_CONSTRAINTS); fi
 	@echo "constraints: wrote $(CONSTRAINTS)$$([ -x $(VOT_BIN)/python ] && echo " and $(VOT_CONSTRAINTS)")$$([ -x $(GOT10K_BIN)/python ] && echo " and $(GOT10K_CONSTRAINTS)")"
 
 demo: install
@@ -70,8 +83,9 @@ lint: install-dev
 	$(BIN)/ruff check vidtrack tests scripts
 	$(BIN)/lint-imports
 
-test: install-dev vot-env got10k-env lint
+test: install-dev vot-env got10k-env trackeval-env lint
 	VIDTRACK_VOT=$(abspath $(VOT_BIN))/vot VIDTRACK_GOT10K=$(abspath $(GOT10K_BIN))/python \
+		VIDTRACK_TRACKEVAL=$(abspath $(TRACKEVAL_BIN))/python \
 		$(BIN)/python -m pytest $(PYTEST_ARGS)
 
 sample: install
@@ -88,4 +102,4 @@ browser:
 	  else echo "make: no chromium and not root: the report-rendering test will skip its browser check"; fi
 
 clean:
-	rm -rf $(VENV) $(VOT_VENV) $(GOT10K_VENV) $(OUT) .pytest_cache
+	rm -rf $(VENV) $(VOT_VENV) $(GOT10K_VENV) $(TRACKEVAL_VENV) $(OUT) .pytest_cache
