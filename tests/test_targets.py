@@ -12,8 +12,11 @@ from __future__ import annotations
 import csv
 import json
 import os
+import re
+import signal
 import subprocess
 import sys
+import time
 from pathlib import Path
 
 import numpy as np
@@ -283,3 +286,33 @@ def test_bench_times_each_count_of_targets(tmp_path, capsys):
     rows = [line.split() for line in table[2:]]
     assert [r[0] for r in rows] == ["1", "2"] and all(r[1] == "5" for r in rows)
     assert float(rows[0][-1]) == 1.0 and float(rows[1][3]) > 0
+
+
+def test_sigterm_with_several_targets_finishes_every_output(tmp_path):
+    paths = write_clip(tmp_path, 0, frames=400, objects=2)
+    out = {name: tmp_path / name for name in ("b.txt", "l.csv", "r.rrd")}
+    process = subprocess.Popen([sys.executable, "-m", "vidtrack", str(paths["clip"]), "--init-boxes",
+                                str(paths["boxes"]), "--filter", "mil", "-q", "--boxes", str(out["b.txt"]),
+                                "--log", str(out["l.csv"]), "--rerun", str(out["r.rrd"])],
+                               cwd=tmp_path, stdin=subprocess.DEVNULL, stdout=subprocess.PIPE,
+                               stderr=subprocess.PIPE, text=True)
+    deadline = time.monotonic() + 120
+    while (not out["b.txt"].exists() or len(out["b.txt"].read_text().splitlines()) < 40) \
+            and time.monotonic() < deadline and process.poll() is None:
+        time.sleep(0.05)
+    process.send_signal(signal.SIGTERM)
+    _, stderr = process.communicate(timeout=60)
+    assert process.returncode == 143, stderr
+    lines = stderr.strip().splitlines()
+    assert len(lines) == 1 and "Traceback" not in stderr, stderr
+    tracked = int(re.search(r"interrupted after (\d+) frames", lines[0]).group(1))
+    assert 20 <= tracked < 400
+    boxes = out["b.txt"].read_text().splitlines()
+    assert len(boxes) == 2 * tracked and all(len(line.split(",")) == 10 for line in boxes)
+    assert len(out["l.csv"].read_text().splitlines()) == 2 * tracked + 1
+
+    pytest.importorskip("rerun")
+    from rerun_reader import read_recording
+
+    recorded = read_recording(out["r.rrd"])
+    assert recorded["video/frame"] == recorded["targets/2/boxes/estimate"] == list(range(tracked))
