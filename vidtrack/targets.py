@@ -135,8 +135,9 @@ def resolve_measurements(priors: Mapping[int, Box], measured: Mapping[int, Box |
     Returns
     -------
     dict
-        Target ID -> ``"nearer target J"`` or ``"same object as target J"``, for the dropped ones only.
-        Pure: the inputs are not modified.
+        Target ID -> ``"pulled towards target J"``, ``"nearer target J"`` or
+        ``"same object as target J"``, for the dropped ones only.  Pure: the
+        inputs are not modified.
     """
     dropped: dict[int, str] = {}
     own = {i: _distance(b, priors[i]) for i, b in measured.items() if b is not None}
