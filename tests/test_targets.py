@@ -86,6 +86,23 @@ def test_each_id_stays_on_its_object_where_paths_cross(crossing, name):
     assert min(share.values()) >= 0.9, share
 
 
+def test_independent_kalman_trackers_lose_identities_where_aware_ones_keep_them(crossing):
+    boxes = read_init_boxes(crossing["paths"]["boxes"])
+    shares = {}
+
+    def record(tracks: dict[int, dict[int, Box]]):
+        return lambda frame, targets: [tracks[i].update({frame.index: s.box}) for i, s in targets.items()]
+
+    for aware in (False, True):
+        tracks: dict[int, dict[int, Box]] = {i: {} for i in boxes}
+        multi = MultiTargetTracker({i: build_tracker("kalman-cv", seed=0) for i in boxes},
+                                   config=InteractionConfig(aware=aware))
+        run_targets(multi, open_source(crossing["paths"]["clip"]), boxes, on_frame=record(tracks))
+        shares[aware] = on_own_object(tracks, crossing["truth"])
+    assert min(shares[False].values()) < 0.7, shares     # one tracker ends on another's object
+    assert min(shares[True].values()) >= 0.9, shares
+
+
 def test_the_log_has_every_target_on_every_frame(crossing):
     rows = list(csv.DictReader(crossing["runs"]["mil"]["log"].open()))
     assert list(rows[0]) == ["frame", "id", "timestamp", "x", "y", "w", "h", "confidence", "status"]
