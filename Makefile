@@ -15,13 +15,17 @@ GOT10K_BIN  := $(GOT10K_VENV)/bin
 # depends on opencv-python-headless, which must never share one with vidtrack's OpenCV.
 DATUMARO_VENV ?= .venv-datumaro
 DATUMARO_BIN  := $(DATUMARO_VENV)/bin
+# TrackEval (HOTA, IDF1, MOTA of several targets) too: it depends on opencv-python.
+TRACKEVAL_VENV ?= .venv-trackeval
+TRACKEVAL_BIN  := $(TRACKEVAL_VENV)/bin
 # Every install takes the tested versions from these files (`make constraints` rewrites them).
 CONSTRAINTS     ?= constraints.txt
 VOT_CONSTRAINTS ?= constraints-vot.txt
 GOT10K_CONSTRAINTS ?= constraints-got10k.txt
 DATUMARO_CONSTRAINTS ?= constraints-datumaro.txt
+TRACKEVAL_CONSTRAINTS ?= constraints-trackeval.txt
 
-.PHONY: demo test lint install install-dev vot-env got10k-env datumaro-env constraints sample clean
+.PHONY: demo test lint install install-dev vot-env got10k-env datumaro-env trackeval-env constraints sample clean
 
 $(BIN)/python:
 	$(PYTHON) -m venv $(VENV)
@@ -54,11 +58,18 @@ $(DATUMARO_VENV)/.installed: $(DATUMARO_CONSTRAINTS)
 	$(DATUMARO_BIN)/python -m pip install --quiet -c $(DATUMARO_CONSTRAINTS) datumaro
 	touch $@
 
+$(TRACKEVAL_VENV)/.installed: $(TRACKEVAL_CONSTRAINTS)
+	$(PYTHON) -m venv $(TRACKEVAL_VENV)
+	$(TRACKEVAL_BIN)/python -m pip install --quiet --upgrade pip
+	$(TRACKEVAL_BIN)/python -m pip install --quiet -c $(TRACKEVAL_CONSTRAINTS) trackeval
+	touch $@
+
 install: $(VENV)/.installed
 install-dev: $(VENV)/.installed-dev
 vot-env: $(VOT_VENV)/.installed
 got10k-env: $(GOT10K_VENV)/.installed
 datumaro-env: $(DATUMARO_VENV)/.installed
+trackeval-env: $(TRACKEVAL_VENV)/.installed
 
 # After adding or upgrading a dependency: install it, run `make test`, then `make constraints`.
 constraints: $(BIN)/python
@@ -70,7 +81,9 @@ constraints: $(BIN)/python
 	   $(GOT10K_BIN)/python -m pip freeze; } > $(GOT10K_CONSTRAINTS); fi
 	@if [ -x $(DATUMARO_BIN)/python ]; then { echo "# Datumaro's own venv (make datumaro-env): the independent reader of vidtrack's CVAT and MOT exports."; \
 	   $(DATUMARO_BIN)/python -m pip freeze; } > $(DATUMARO_CONSTRAINTS); fi
-	@echo "constraints: wrote $(CONSTRAINTS)$$([ -x $(VOT_BIN)/python ] && echo " and $(VOT_CONSTRAINTS)")$$([ -x $(GOT10K_BIN)/python ] && echo " and $(GOT10K_CONSTRAINTS)")$$([ -x $(DATUMARO_BIN)/python ] && echo " and $(DATUMARO_CONSTRAINTS)")"
+	@if [ -x $(TRACKEVAL_BIN)/python ]; then { echo "# TrackEval's own venv (make trackeval-env), the scores of several targets."; \
+	   $(TRACKEVAL_BIN)/python -m pip freeze; } > $(TRACKEVAL_CONSTRAINTS); fi
+	@echo "constraints: wrote $(CONSTRAINTS)$$([ -x $(VOT_BIN)/python ] && echo " and $(VOT_CONSTRAINTS)")$$([ -x $(GOT10K_BIN)/python ] && echo " and $(GOT10K_CONSTRAINTS)")$$([ -x $(DATUMARO_BIN)/python ] && echo " and $(DATUMARO_CONSTRAINTS)")$$([ -x $(TRACKEVAL_BIN)/python ] && echo " and $(TRACKEVAL_CONSTRAINTS)")"
 
 demo: install
 	@mkdir -p $(OUT)
@@ -84,9 +97,9 @@ lint: install-dev
 	$(BIN)/ruff check vidtrack tests scripts
 	$(BIN)/lint-imports
 
-test: install-dev vot-env got10k-env datumaro-env lint
+test: install-dev vot-env got10k-env datumaro-env trackeval-env lint
 	VIDTRACK_VOT=$(abspath $(VOT_BIN))/vot VIDTRACK_GOT10K=$(abspath $(GOT10K_BIN))/python \
-		VIDTRACK_DATUMARO=$(abspath $(DATUMARO_BIN))/python \
+		VIDTRACK_DATUMARO=$(abspath $(DATUMARO_BIN))/python VIDTRACK_TRACKEVAL=$(abspath $(TRACKEVAL_BIN))/python \
 		$(BIN)/python -m pytest $(PYTEST_ARGS)
 
 sample: install
@@ -103,4 +116,4 @@ browser:
 	  else echo "make: no chromium and not root: the report-rendering test will skip its browser check"; fi
 
 clean:
-	rm -rf $(VENV) $(VOT_VENV) $(GOT10K_VENV) $(DATUMARO_VENV) $(OUT) .pytest_cache
+	rm -rf $(VENV) $(VOT_VENV) $(GOT10K_VENV) $(DATUMARO_VENV) $(TRACKEVAL_VENV) $(OUT) .pytest_cache

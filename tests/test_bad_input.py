@@ -47,6 +47,21 @@ CASES: dict[str, tuple[list[str], str]] = {
     "box mostly left of the frame": (["{video}", "--init-box", "-30,20,31,45"], "outside"),
     "box 1e9 wide": (["{video}", "--init-box", "0,0,1e9,45"], "outside"),
     "missing --init-box": (["{video}"], "init-box"),
+    # -- several targets
+    "--init-boxes with a bad line": (["{video}", "--init-boxes", "{boxes_bad}"], "boxes_bad.txt line 3: expected id,x,y,w,h"),
+    "--init-boxes with a duplicate ID": (["{video}", "--init-boxes", "{boxes_duplicate}"],
+                                         "line 3: target ID 2 is already on line 2"),
+    "--init-boxes with ID 0": (["{video}", "--init-boxes", "{boxes_zero_id}"], "must be a positive integer"),
+    "--init-boxes with a box of zero width": (["{video}", "--init-boxes", "{boxes_zero_width}"],
+                                              "line 1 must have a positive width"),
+    "--init-boxes missing": (["{video}", "--init-boxes", "nope.txt"], "cannot read --init-boxes nope.txt"),
+    "--init-boxes empty": (["{video}", "--init-boxes", "{boxes_empty}"], "holds no id,x,y,w,h line"),
+    "--init-boxes beside --init-box": (["{video}", "--init-box", "1,1,5,5", "--init-boxes", "{boxes_empty}"],
+                                       "not allowed with argument"),
+    "second --init-box outside": (["{video}", "--init-box", "56,20,31,45", "--init-box", "900,900,9,9"],
+                                  "--init-box #2 900.00,900.00,9.00,9.00 lies outside"),
+    "second --init-box malformed": (["{video}", "--init-box", "56,20,31,45", "--init-box", "1,2,3"],
+                                    "--init-box #2 must be four numbers"),
     "--init-box without value": (["{video}", "--init-box"], "expected one argument"),
     # -- degenerate boxes for OpenCV's trackers (inside OpenCV: an assertion, a segfault or a hang)
     "opencv-csrt on 1x1": (["{video}", "--init-box", "56,20,1,1", "--filter", "opencv-csrt"], "at least 8x8"),
@@ -131,6 +146,9 @@ CASES: dict[str, tuple[list[str], str]] = {
     "bench: opencv-mosse on 1x1": (["bench", "{video}", "--init-box", "5,5,1,1", "--filter", "opencv-mosse"],
                                    "at least 8x8"),
     "bench: text file as video": (["bench", "{text}", "--init-box", "1,1,5,5"], "not a video file"),
+    "bench: --targets beyond the boxes": (["bench", "{video}", "--init-box", "1,1,5,5", "--targets", "1,2"],
+                                          "--targets 2 needs 2 boxes, 1 given"),
+    "bench: --targets 0": (["bench", "{video}", "--init-box", "1,1,5,5", "--targets", "0"], "positive counts"),
     "bench: --set of a bad value": (["bench", "{video}", "--init-box", "1,1,5,5", "--filter", "svk",
                                      "--set", "svr.window=2.5"], "expected an integer"),
     # -- vidtrack filters, vidtrack trax (an error before any protocol message)
@@ -211,6 +229,12 @@ def corpus_files(tmp: Path) -> dict[str, str]:
     mixed = _sequence(tmp / "bad6", "Mixed", ["10,10,20,20"] * 3)
     _frames(tmp / "bad6" / "Mixed" / "img", [(64, 48), (80, 60)])
     files["gt_mixed"] = str(mixed)
+    for name, text in (("boxes_bad", "1,56,20,31,45\n# a comment\n2,10,10,20\n"),
+                       ("boxes_duplicate", "\n2,56,20,31,45\n2,10,10,20,20\n"),
+                       ("boxes_zero_id", "0,56,20,31,45\n"), ("boxes_zero_width", "1,56,20,0,45\n"),
+                       ("boxes_empty", "# nothing\n")):
+        (tmp / f"{name}.txt").write_text(text)
+        files[name] = str(tmp / f"{name}.txt")
     (tmp / "bad.toml").write_text("[svr\nC = 1\n")
     files["bad_toml"] = str(tmp / "bad.toml")
     (tmp / "unknown.toml").write_text("[fusion]\nredetect = false\n")

@@ -34,7 +34,7 @@ def test_every_filter_writes_one_box_per_frame(name, tmp_path, sample_init_box):
     assert lines[0] == sample_init_box
     assert all(len(line.split(",")) == 4 for line in lines)
     rows = list(csv.DictReader(log.open()))
-    assert len(rows) == FRAMES and set(rows[0]) == {"frame", "x", "y", "w", "h", "confidence", "status"}
+    assert len(rows) == FRAMES and set(rows[0]) == {"frame", "id", "timestamp", "x", "y", "w", "h", "confidence", "status"}
 
 
 def test_whole_sample_tracked_with_annotated_video(tmp_path, sample_init_box):

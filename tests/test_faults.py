@@ -307,8 +307,8 @@ def test_a_full_disk_while_tracking_is_one_line_exit_1_and_every_file_stays_vali
     boxes = read_boxes(out["b.txt"])                                   # every line complete
     with open(out["log.csv"], newline="") as file:
         rows = list(csv.reader(file))
-    assert rows[0] == ["frame", "x", "y", "w", "h", "confidence", "status"]
-    assert all(len(row) == 7 for row in rows[1:])
+    assert rows[0] == ["frame", "id", "timestamp", "x", "y", "w", "h", "confidence", "status"]
+    assert all(len(row) == 9 for row in rows[1:])
     assert [int(row[0]) for row in rows[1:]] == list(range(len(rows) - 1))
     assert written <= len(boxes) <= written + 1 and written <= len(rows) - 1 <= written + 1
     assert count_frames(out["out.mp4"]) <= written + 1                 # PyAV reads what the video holds

@@ -50,7 +50,7 @@ def stats_entities(path: Path) -> set[str]:
     assert out.returncode == 0, out.stderr
     section = out.stdout.split("Num chunks per entity", 1)[1].split("\n\n", 1)[0]
     found = set(re.findall(r"^/(\S+): \d+", section, flags=re.M))
-    return {e for e in found if e.startswith(("video/", "stages/", "filter/", "log/"))}
+    return {e for e in found if e.startswith(("video/", "targets/"))}
 
 
 def verify(path: Path) -> None:
@@ -95,7 +95,7 @@ def hand_recording(tmp_path_factory) -> Path:
     # batch_frames=5: rows cross batch boundaries (frames 0-4, 5-9, 10-11 sent at close)
     sink = RerunSink(path, filter_name="hand", ground_truth=GROUND_TRUTH, superpixels_every=5, batch_frames=5)
     for frame, state in hand_states(np.random.default_rng(0)):
-        sink.write(frame, state)
+        sink.write(frame, {1: state})
     sink.close()
     sink.close()  # idempotent
     return path
@@ -104,12 +104,12 @@ def hand_recording(tmp_path_factory) -> Path:
 def test_recording_verifies_and_lists_every_entity(hand_recording):
     verify(hand_recording)
     expected = {
-        "video/frame", "video/boxes/predicted", "video/boxes/measured", "video/boxes/estimate",
-        "video/boxes/ground_truth", "video/search_region",
-        "stages/superpixels", "stages/svm_scores", "stages/inliers", "stages/score_map",
-        "stages/detections", "stages/particles", "stages/backprojection", "stages/my_stage",
-        "stages/my_points", "filter/confidence", "filter/innovation", "filter/covariance_trace",
-        "filter/c_t", "log/status",
+        "video/frame", "targets/1/boxes/predicted", "targets/1/boxes/measured", "targets/1/boxes/estimate",
+        "video/boxes/ground_truth", "targets/1/search_region",
+        "targets/1/stages/superpixels", "targets/1/stages/svm_scores", "targets/1/stages/inliers", "targets/1/stages/score_map",
+        "targets/1/stages/detections", "targets/1/stages/particles", "targets/1/stages/backprojection", "targets/1/stages/my_stage",
+        "targets/1/stages/my_points", "targets/1/filter/confidence", "targets/1/filter/innovation", "targets/1/filter/covariance_trace",
+        "targets/1/filter/c_t", "targets/1/log/status",
     }
     assert stats_entities(hand_recording) == expected
     assert set(read_recording(hand_recording)) == expected   # the recording store alone: nothing else
@@ -120,22 +120,22 @@ def test_recording_holds_every_frame_per_entity(hand_recording):
     every = list(range(N_FRAMES))
     measured = [i for i in every if 0 < i != NO_MEASUREMENT]
     assert frames["video/frame"] == every
-    assert frames["video/boxes/estimate"] == every
-    assert frames["filter/confidence"] == every
-    assert frames["filter/innovation"] == every
-    assert frames["video/boxes/predicted"] == every[1:]
-    assert frames["video/boxes/measured"] == measured
-    assert frames["video/search_region"] == measured
+    assert frames["targets/1/boxes/estimate"] == every
+    assert frames["targets/1/filter/confidence"] == every
+    assert frames["targets/1/filter/innovation"] == every
+    assert frames["targets/1/boxes/predicted"] == every[1:]
+    assert frames["targets/1/boxes/measured"] == measured
+    assert frames["targets/1/search_region"] == measured
     assert frames["video/boxes/ground_truth"] == [0, 5, 10]      # annotated frames only
     for name in ("svm_scores", "inliers", "score_map", "backprojection", "particles", "detections",
                  "my_stage", "my_points"):
-        assert frames[f"stages/{name}"] == measured, name
-    assert frames["stages/superpixels"] == [10]                  # every 5th frame (5 had none)
-    assert frames["log/status"] == [0, LOST_FRAMES[0], LOST_FRAMES[-1] + 1]
+        assert frames[f"targets/1/stages/{name}"] == measured, name
+    assert frames["targets/1/stages/superpixels"] == [10]                  # every 5th frame (5 had none)
+    assert frames["targets/1/log/status"] == [0, LOST_FRAMES[0], LOST_FRAMES[-1] + 1]
 
 
 def test_status_changes_are_a_text_log(hand_recording):
-    out = rerun_cli("rrd", "print", "-vvv", "--entity", "/log/status", str(hand_recording))
+    out = rerun_cli("rrd", "print", "-vvv", "--entity", "/targets/1/log/status", str(hand_recording))
     assert out.returncode == 0, out.stderr
     assert "lost" in out.stdout and "re-acquired" in out.stdout
 
@@ -144,8 +144,8 @@ def test_default_blueprint_shows_frame_stages_and_plots(hand_recording):
     out = rerun_cli("rrd", "print", "-vvv", str(hand_recording))
     assert out.returncode == 0, out.stderr
     for name in ("superpixels", "svm_scores", "inliers", "score_map", "backprojection", "my_stage"):
-        assert f"+ stages/{name}]" in out.stdout, name          # one overlay view per image stage
-    assert "+ stages/particles" in out.stdout and "+ video/**" in out.stdout   # the frame view
+        assert re.search(rf"\+ targets/1/stages/{name}[,\]]", out.stdout), name   # one overlay view per image stage
+    assert "+ targets/1/stages/particles" in out.stdout and "+ video/**" in out.stdout   # the frame view
     assert "TimeSeries" in out.stdout                                     # the plots view class
 
 
@@ -155,9 +155,9 @@ def test_two_recordings_in_one_process_are_separate(tmp_path):
     sink_b = RerunSink(b, filter_name="b")
     image = np.zeros((40, 50, 3), np.uint8)
     for i in range(6):
-        sink_a.write(Frame(i, image), TrackState(i, Box(5, 5, 10, 10), 1.0, "tracking"))
+        sink_a.write(Frame(i, image), {1: TrackState(i, Box(5, 5, 10, 10), 1.0, "tracking")})
         if i < 3:
-            sink_b.write(Frame(i, image), TrackState(i, Box(5, 5, 10, 10), 1.0, "tracking"))
+            sink_b.write(Frame(i, image), {1: TrackState(i, Box(5, 5, 10, 10), 1.0, "tracking")})
     sink_b.close()
     verify(b)      # b is complete while a is still open
     sink_a.close()
@@ -232,8 +232,8 @@ def test_ctrl_c_inside_the_sink_leaves_no_half_frame(tmp_path, monkeypatch):
     verify(path)
     recorded = read_recording(path)
     assert recorded["video/frame"] == list(range(9))          # frame 9 was not half logged
-    assert recorded["video/boxes/estimate"] == list(range(9))
-    assert recorded["stages/backprojection"] == list(range(1, 9))
+    assert recorded["targets/1/boxes/estimate"] == list(range(9))
+    assert recorded["targets/1/stages/backprojection"] == list(range(1, 9))
 
 
 def _write_synthetic_video(folder: Path, n: int) -> None:
@@ -253,7 +253,7 @@ def test_cli_writes_a_recording(tmp_path, name):
     verify(out)
     frames = read_recording(out)
     assert frames["video/frame"] == list(range(10))
-    assert frames["stages/backprojection"] == list(range(1, 10))   # mean-shift based filters
+    assert frames["targets/1/stages/backprojection"] == list(range(1, 10))   # mean-shift based filters
     assert "video/boxes/ground_truth" not in frames                # eval only
 
 
@@ -278,14 +278,14 @@ def test_size_budget_on_a_real_320x240_sequence(tmp_path):
 
 #: Entities each paper filter must show (its own stages and scalars), beyond those every filter shows.
 FILTER_ENTITIES = {
-    "mil": {"stages/superpixels", "stages/svm_scores", "stages/inliers", "filter/inlier_count",
-            "filter/svm_margin"},
-    "nh": {"stages/score_map", "stages/particles", "filter/c_t", "filter/live_actions"},
-    "svk": {"filter/F_00", "filter/Q_00", "filter/innovation"},
-    "cbt": {"stages/score_map", "stages/detections"},
+    "mil": {"targets/1/stages/superpixels", "targets/1/stages/svm_scores", "targets/1/stages/inliers", "targets/1/filter/inlier_count",
+            "targets/1/filter/svm_margin"},
+    "nh": {"targets/1/stages/score_map", "targets/1/stages/particles", "targets/1/filter/c_t", "targets/1/filter/live_actions"},
+    "svk": {"targets/1/filter/F_00", "targets/1/filter/Q_00", "targets/1/filter/innovation"},
+    "cbt": {"targets/1/stages/score_map", "targets/1/stages/detections"},
 }
-COMMON_ENTITIES = {"video/frame", "video/boxes/estimate", "video/boxes/predicted", "video/search_region",
-                   "filter/confidence", "log/status"}
+COMMON_ENTITIES = {"video/frame", "targets/1/boxes/estimate", "targets/1/boxes/predicted", "targets/1/search_region",
+                   "targets/1/filter/confidence", "targets/1/log/status"}
 
 
 @pytest.mark.skipif(not (SEQUENCES / "David/img").is_dir(), reason="shared sequences missing")

@@ -10,15 +10,19 @@ Two ways in, one loop underneath::
     for state in vidtrack.track("clip.mp4", (x, y, w, h), filter="mil"):
         print(state.index, state.box, state.confidence)
 
+    for targets in vidtrack.track("clip.mp4", boxes=[box_a, box_b]):   # several targets: IDs 1, 2
+        print({i: s.box for i, s in targets.items()})
+
 A tracker's options are the fields of its frozen configuration
 (``vidtrack filters NAME`` lists them): top-level fields as keywords
 (``vidtrack.create("svk", seed=0, bins=8)``), any field by its dotted key in
 ``settings`` (``settings={"svr.C": 2.0}``), as the command line's
 ``--set KEY=VALUE`` does.
 
-:func:`track_frames` is the loop; the command line (:func:`vidtrack.run.run_tracker`,
-which ``vidtrack eval`` also calls per job) and :func:`track` both iterate it,
-so a box from the library equals the box the CLI writes.
+:func:`track_targets` is the loop; the command line (:func:`vidtrack.run.run_targets`,
+which ``vidtrack eval`` also calls per job) and :func:`track` with ``boxes``
+iterate it, and with one target it steps the tracker exactly as
+:func:`track_frames` does, so a box from the library equals the box the CLI writes.
 """
 
 from __future__ import annotations
@@ -31,11 +35,12 @@ import numpy as np
 
 from .errors import UsageError
 from .recipes import build_tracker, recipe_config, registry
+from .targets import MultiTargetTracker
 from .tracker import Tracker
 from .types import Box, Frame, TrackState
 
-__all__ = ["VidtrackTracker", "create", "filters", "track", "track_frames", "tracker_config", "as_box", "as_image",
-           "check_inside"]
+__all__ = ["VidtrackTracker", "create", "filters", "track", "track_frames", "track_targets", "tracker_config",
+           "as_box", "as_boxes", "as_image", "check_inside"]
 
 _T = TypeVar("_T")
 
@@ -85,6 +90,35 @@ def check_inside(box: Box, width: int, height: int, *, what: str = "box") -> Non
     """
     if not box.is_inside(width, height):
         raise UsageError(f"{what} {box} lies outside the {width}x{height} frame")
+
+
+def as_boxes(boxes: Any) -> dict[int, Box]:
+    """Target ID -> :class:`~vidtrack.types.Box` from a mapping ``{id: box}`` or a sequence of boxes (IDs 1, 2 ...).
+
+    Each box is read by :func:`as_box`.
+
+    Raises
+    ------
+    UsageError
+        For no box at all, an ID that is not a positive int, or a malformed box.
+    """
+    if isinstance(boxes, Mapping):
+        items = list(boxes.items())
+    elif isinstance(boxes, (str, bytes, Box)) or not isinstance(boxes, Iterable):
+        raise UsageError(f"boxes must be a list of boxes or a mapping ID -> box, got {type(boxes).__name__}")
+    else:
+        items = list(enumerate(boxes, start=1))
+    if not items:
+        raise UsageError("boxes must hold at least one box")
+    result: dict[int, Box] = {}
+    for key, box in items:
+        if isinstance(key, bool) or not isinstance(key, (int, np.integer)) or key < 1:
+            raise UsageError(f"target IDs must be positive ints, got {key!r}")
+        try:
+            result[int(key)] = as_box(box)
+        except UsageError as exc:
+            raise UsageError(f"target {key}: {exc}") from None
+    return dict(sorted(result.items()))
 
 
 def as_image(image: Any) -> np.ndarray:
@@ -290,9 +324,36 @@ def track_frames(tracker: VidtrackTracker, frames: Iterable[Frame], box: Box, *,
         yield frame, state
 
 
-def track(source: Any, box: Any, filter: str = "mil", *, seed: int | None = 0, max_frames: int | None = None,
-          settings: Mapping[str, Any] | None = None, **options: Any) -> Iterator[TrackState]:
-    """Track ``box`` through ``source``, yielding one :class:`~vidtrack.types.TrackState` per frame.
+def track_targets(multi: MultiTargetTracker, frames: Iterable[Frame], boxes: Mapping[int, Box], *,
+                  max_frames: int | None = None,
+                  validate_boxes: Callable[[Frame, Mapping[int, Box]], None] | None = None
+                  ) -> Iterator[tuple[Frame, dict[int, TrackState]]]:
+    """The tracking loop of several targets: ``(frame, {id: state})`` for every frame, the first initialising.
+
+    ``validate_boxes(first_frame, boxes)`` may raise to reject the boxes once
+    the frame size is known; at most ``max_frames`` frames are tracked.  A
+    frame whose index is in ``frames.missing`` (a source's frames that did not
+    decode) is only predicted (:meth:`MultiTargetTracker.predict_only`).  The
+    time spent tracking accumulates in ``multi.seconds``.
+    """
+    for count, frame in enumerate(frames):
+        if max_frames is not None and count >= max_frames:
+            return
+        if count == 0:
+            if validate_boxes is not None:
+                validate_boxes(frame, boxes)
+            states = multi.initialize(frame, boxes)
+        elif frame.index in getattr(frames, "missing", ()):
+            states = multi.predict_only(frame)
+        else:
+            states = multi.step(frame)
+        yield frame, states
+
+
+def track(source: Any, box: Any = None, filter: str = "mil", *, boxes: Any = None, seed: int | None = 0,
+          max_frames: int | None = None, settings: Mapping[str, Any] | None = None,
+          **options: Any) -> Iterator[TrackState] | Iterator[dict[int, TrackState]]:
+    """Track ``box`` (or every box of ``boxes``) through ``source``, yielding each frame's state(s).
 
     Parameters
     ----------
@@ -300,9 +361,16 @@ def track(source: Any, box: Any, filter: str = "mil", *, seed: int | None = 0, m
         A video file, a folder of frame images, or any iterable of BGR
         ``uint8`` images (or :class:`~vidtrack.types.Frame`).
     box
-        ``x, y, w, h`` of the object in the first frame, 0-based pixels.
+        ``x, y, w, h`` of the object in the first frame, 0-based pixels: one
+        :class:`~vidtrack.types.TrackState` is yielded per frame.
     filter
         Tracker name (see :func:`filters`); default ``mil``.
+    boxes
+        Instead of ``box``, several targets: a list of boxes (target IDs 1, 2
+        ...) or a mapping ID -> box.  Each target gets its own tracker (all
+        with ``seed``); per frame a dict ID -> TrackState (IDs ascending) is
+        yielded (:class:`~vidtrack.targets.MultiTargetTracker`: the trackers
+        share each frame, run side by side and know about each other).
     seed, settings, **options
         As for :func:`create`.
     max_frames
@@ -313,6 +381,27 @@ def track(source: Any, box: Any, filter: str = "mil", *, seed: int | None = 0, m
     UsageError, SourceError
         For a bad name, option, box or source (raised before the first frame is tracked).
     """
+    if (box is None) == (boxes is None):
+        raise UsageError("give either box (one target) or boxes (several targets)")
+    if boxes is not None:
+        targets = as_boxes(boxes)
+        multi = MultiTargetTracker({i: create(filter, seed=seed, settings=settings, **options).tracker
+                                    for i in targets})
+        frames = as_frames(source)
+
+        def check_all(frame: Frame, boxes: Mapping[int, Box]) -> None:
+            for i, b in boxes.items():
+                check_inside(b, frame.width, frame.height, what=f"target {i}'s box")
+
+        def generate() -> Iterator[dict[int, TrackState]]:
+            try:
+                for _, states in track_targets(multi, frames, targets, max_frames=max_frames,
+                                               validate_boxes=check_all):
+                    yield states
+            finally:
+                multi.close()
+
+        return generate()
     tracker = create(filter, seed=seed, settings=settings, **options)
     box = as_box(box)
     frames = as_frames(source)

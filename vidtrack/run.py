@@ -1,16 +1,16 @@
-"""Drive a tracker over a frame stream into sinks, timing the tracking alone."""
+"""Drive one tracker per target over a frame stream into sinks, timing the tracking alone."""
 
 from __future__ import annotations
 
 import signal
-import time
 from dataclasses import dataclass, field
-from typing import Callable, Iterable, Sequence
+from typing import Callable, Iterable, Mapping, Sequence
 
-from .api import VidtrackTracker, track_frames
+from .api import track_targets
 from .errors import OutputError
 from .sinks.base import Sink, close_and_remove, uninterrupted
-from .tracker import Tracker, make_state
+from .targets import MultiTargetTracker
+from .tracker import Tracker
 from .types import Box, Frame, TrackState
 
 
@@ -18,15 +18,16 @@ from .types import Box, Frame, TrackState
 class RunResult:
     """What a run did.
 
-    ``frames`` tracked (init frame included), ``lost_frames`` with status
-    lost, ``track_seconds`` spent in the tracker (decoding and sinks
+    ``frames`` tracked (init frame included), ``lost_frames`` the states
+    with status lost (summed over the targets), ``track_seconds`` spent in the tracker (decoding and sinks
     excluded), ``interrupted`` by Ctrl-C or a stopping signal (``signum``
     its number), ``decode_error`` when the source stopped early,
     ``output_error`` when an output could not be written part-way (a full
     disk: the run stopped there, every output keeps the frames written
     before), ``skipped`` the source's frames that did not decode (the tracker
     predicted through them: :class:`~vidtrack.sources.SkippedFrame`),
-    ``last_state`` the final state.
+    ``last_states`` every target's final state (ID -> state), ``last_state``
+    the lowest ID's.
     """
 
     frames: int = 0
@@ -38,6 +39,7 @@ class RunResult:
     output_error: OutputError | None = None
     skipped: list = field(default_factory=list)
     last_state: TrackState | None = None
+    last_states: dict[int, TrackState] = field(default_factory=dict)
 
     @property
     def fps(self) -> float:
@@ -45,59 +47,43 @@ class RunResult:
         return self.frames / self.track_seconds if self.track_seconds > 0 else float("nan")
 
 
-class PredictingThroughGaps(VidtrackTracker):
-    """A :class:`~vidtrack.api.VidtrackTracker` that only predicts on the frames its source could not decode.
+def run_targets(multi: MultiTargetTracker, frames: Iterable[Frame], init_boxes: Mapping[int, Box],
+                sinks: Sequence[Sink] = (), *, max_frames: int | None = None,
+                on_frame: Callable[[Frame, Mapping[int, TrackState]], None] | None = None,
+                validate_boxes: Callable[[Frame, Mapping[int, Box]], None] | None = None) -> RunResult:
+    """Track every target of ``init_boxes`` (ID -> box) through ``frames``, writing each frame to ``sinks``.
 
-    On a frame whose index is in the source's ``missing`` set the filter
-    predicts and is updated with no measurement (``update(None)``, which
-    every filter takes); the measurer neither looks at it nor learns from it.
-    """
-
-    def __init__(self, tracker: Tracker, source: object) -> None:
-        super().__init__(tracker)
-        self.source = source
-
-    def step_frame(self, frame: Frame) -> TrackState:
-        if frame.index not in getattr(self.source, "missing", ()):
-            return super().step_frame(frame)
-        start = time.perf_counter()
-        prior = self.tracker.filter.predict()
-        state = make_state(frame.index, prior, None, self.tracker.filter.update(None))
-        self.seconds += time.perf_counter() - start
-        return self._keep(frame, state)
-
-
-def run_tracker(tracker: Tracker, frames: Iterable[Frame], init_box: Box, sinks: Sequence[Sink] = (), *,
-                max_frames: int | None = None, on_state: Callable[[TrackState], None] | None = None,
-                validate_box: Callable[[Frame, Box], None] | None = None) -> RunResult:
-    """Track ``init_box`` through ``frames``, writing every state to ``sinks``.
-
-    The sinks are always closed, also after an exception or Ctrl-C (a
-    KeyboardInterrupt, also one a stopping signal raises with a ``signum``:
-    swallowed and reported as ``interrupted``), so every frame already tracked
-    is on disk.  ``validate_box(first_frame, box)`` may raise to reject the
-    init box once the frame size is known.  The loop is the Python API's
-    (:func:`vidtrack.api.track_frames`), so both give the same boxes.  When
+    Each sink's ``write(frame, targets)`` gets every target's state (ID ->
+    :class:`~vidtrack.types.TrackState`, IDs ascending); then
+    ``on_frame(frame, targets)`` is called.  The sinks are always closed, also
+    after an exception or Ctrl-C (a KeyboardInterrupt, also one a stopping
+    signal raises with a ``signum``: swallowed and reported as
+    ``interrupted``), so every frame already tracked is on disk.
+    ``validate_boxes(first_frame, boxes)`` may raise to reject the init boxes
+    once the frame size is known.  The loop is the Python API's
+    (:func:`vidtrack.api.track_targets`), so both give the same boxes.  When
     anything raises before the first frame is written, the sinks' files are
     removed: bad input leaves no empty output behind.  An output that fails
     part-way (:class:`~vidtrack.errors.OutputError`, a full disk) ends the
     run: ``output_error`` says why, every sink is closed.  A frame the source
-    lists as ``missing`` (it did not decode) is predicted through
-    (:class:`PredictingThroughGaps`), so every sink still gets one state per frame.
+    lists as ``missing`` (it did not decode) is predicted through by every
+    target (:meth:`MultiTargetTracker.predict_only`), so every sink still gets
+    one state per target and frame.  ``multi``'s worker threads are ended.
     """
     result = RunResult()
-    runner = PredictingThroughGaps(tracker, frames)
     try:
-        for frame, state in track_frames(runner, frames, init_box, max_frames=max_frames, validate_box=validate_box):
-            result.track_seconds = runner.seconds
+        for frame, states in track_targets(multi, frames, init_boxes, max_frames=max_frames,
+                                           validate_boxes=validate_boxes):
+            result.track_seconds = multi.seconds
             with uninterrupted():   # a stopping signal waits till every sink holds the frame
                 for sink in sinks:
-                    sink.write(frame, state)
+                    sink.write(frame, states)
                 result.frames += 1
-                result.lost_frames += state.status == "lost"
-                result.last_state = state
-            if on_state is not None:
-                on_state(state)
+                result.lost_frames += sum(state.status == "lost" for state in states.values())
+                result.last_states = states
+                result.last_state = states[min(states)]
+            if on_frame is not None:
+                on_frame(frame, states)
     except KeyboardInterrupt as exc:
         result.interrupted = True
         result.signum = int(getattr(exc, "signum", signal.SIGINT))
@@ -111,6 +97,7 @@ def run_tracker(tracker: Tracker, frames: Iterable[Frame], init_box: Box, sinks:
             close_and_remove(sinks, errors=False)
         raise
     finally:
+        multi.close()
         for sink in sinks:
             try:
                 sink.close()
@@ -119,3 +106,17 @@ def run_tracker(tracker: Tracker, frames: Iterable[Frame], init_box: Box, sinks:
     result.decode_error = getattr(frames, "decode_error", None)
     result.skipped = list(getattr(frames, "skipped", ()))
     return result
+
+
+def run_tracker(tracker: Tracker, frames: Iterable[Frame], init_box: Box, sinks: Sequence[Sink] = (), *,
+                max_frames: int | None = None,
+                on_frame: Callable[[Frame, Mapping[int, TrackState]], None] | None = None,
+                validate_box: Callable[[Frame, Box], None] | None = None) -> RunResult:
+    """Track ``init_box`` through ``frames`` as target 1 (:func:`run_targets` with one target).
+
+    ``validate_box(first_frame, box)`` may raise to reject the box once the
+    frame size is known; the sinks and ``on_frame`` get ``{1: state}``.
+    """
+    validate = None if validate_box is None else (lambda frame, boxes: validate_box(frame, boxes[1]))
+    return run_targets(MultiTargetTracker({1: tracker}), frames, {1: init_box}, sinks, max_frames=max_frames,
+                       on_frame=on_frame, validate_boxes=validate)

@@ -1,7 +1,11 @@
-"""``vidtrack VIDEO --init-box x,y,w,h [--filter NAME] [options]``: track one object through a video.
+"""``vidtrack VIDEO --init-box x,y,w,h [--filter NAME] [options]``: track objects through a video.
 
-Writes any of: the annotated video (``-o``), one box per frame (``--boxes``),
-a per-frame CSV log (``--log``) and a Rerun recording (``--rerun``).  Exit 0,
+One target per ``--init-box`` (repeatable: IDs 1, 2 ...) or per line of
+``--init-boxes FILE`` (``id,x,y,w,h``); several targets are tracked side by
+side (:class:`~vidtrack.targets.MultiTargetTracker`).  Writes any of: the
+annotated video (``-o``), the boxes (``--boxes``: one ``x,y,w,h`` per frame,
+MOT Challenge lines with several targets), a per-frame CSV log (``--log``)
+and a Rerun recording (``--rerun``).  Exit 0,
 also when a frame in the middle does not decode (a warning names it; the
 tracker predicts through it) or the video stops decoding part way (a warning;
 every frame tracked is kept); 1 when an output fails part-way (a full disk:
@@ -16,12 +20,17 @@ from __future__ import annotations
 import argparse
 import signal
 import sys
-from typing import Sequence
+from typing import TYPE_CHECKING, Sequence
 
 from ..errors import UsageError, VidtrackError
 from ..version import __version__
 from .common import (EXIT_FAILED, EXIT_OK, SUBCOMMANDS, OneLineParser, add_filter_argument, add_settings_arguments,
-                     check_box_in_frame, check_settings, default_filter, error_line, interrupted_exit_code, parse_init_box, progress_bar, say, tracker_settings)
+                     check_settings, default_filter, error_line, interrupted_exit_code, progress_bar, say,
+                     tracker_settings)
+from .init_boxes import add_init_box_arguments, boxes_in_frame, init_boxes
+
+if TYPE_CHECKING:
+    from ..targets import MultiTargetTracker
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -31,12 +40,13 @@ def build_parser() -> argparse.ArgumentParser:
                     f"Subcommands: {', '.join(SUBCOMMANDS)} (vidtrack SUBCOMMAND --help).",
     )
     parser.add_argument("video", help="video file (mp4, avi, webm ...) or folder of frame images")
-    parser.add_argument("--init-box", required=True, metavar="x,y,w,h",
-                        help="the object's box in the first frame, 0-based pixels")
+    add_init_box_arguments(parser)
     add_filter_argument(parser)
     parser.add_argument("-o", "--output", metavar="FILE.mp4", help="write the annotated video here")
-    parser.add_argument("--boxes", metavar="FILE", help="write one x,y,w,h line per frame here")
-    parser.add_argument("--log", metavar="FILE.csv", help="write frame,x,y,w,h,confidence,status per frame")
+    parser.add_argument("--boxes", metavar="FILE", help="write one x,y,w,h line per frame here (several targets: "
+                                                        "MOT Challenge lines frame,id,x,y,w,h,confidence,-1,-1,-1)")
+    parser.add_argument("--log", metavar="FILE.csv",
+                        help="write frame,id,timestamp,x,y,w,h,confidence,status per target and frame")
     parser.add_argument("--rerun", metavar="FILE.rrd", help="write a Rerun recording of every stage")
     parser.add_argument("--rerun-spawn", action="store_true", help="also show the recording in a Rerun viewer")
     parser.add_argument("--flush-every", type=int, default=30, metavar="N",
@@ -50,27 +60,11 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
-def main(argv: Sequence[str]) -> int:
-    """``vidtrack VIDEO ...``: the exit code."""
-    from ..recipes import build_tracker
-    from ..run import run_tracker
+def build_sinks(args: argparse.Namespace, name: str, source) -> list:
+    """The sinks the options ask for; none left behind when one cannot be opened."""
     from ..sinks.base import close_and_remove
     from ..sinks.files import BoxesSink, CsvLogSink
     from ..sinks.video import AnnotatedVideoSink
-    from ..sources import open_source
-
-    args = build_parser().parse_args(argv)
-    init_box = parse_init_box(args.init_box)
-    if args.max_frames is not None and args.max_frames < 1:
-        raise UsageError("--max-frames must be at least 1")
-    if args.flush_every < 1:
-        raise UsageError("--flush-every must be at least 1")
-    name = args.filter or default_filter()
-    settings = tracker_settings(args)
-    check_settings(name, settings)
-    tracker = build_tracker(name, seed=args.seed, settings=settings)
-    source = open_source(args.video)
-    source.on_skip = lambda message: say(f"warning: {message}; the tracker predicts through")
 
     sinks = []
     try:
@@ -89,21 +83,58 @@ def main(argv: Sequence[str]) -> int:
     except VidtrackError:
         close_and_remove(sinks)  # no empty boxes file beside an unwritable video
         raise
+    return sinks
+
+
+def build_targets(name: str, seed: int, settings: dict, ids) -> "MultiTargetTracker":
+    """One tracker ``name`` per target ID, all with ``seed`` and ``settings``."""
+    from ..recipes import build_tracker
+    from ..targets import MultiTargetTracker
+
+    return MultiTargetTracker({i: build_tracker(name, seed=seed, settings=settings) for i in ids})
+
+
+def run_summary(name: str, result, targets: int, written: list[str]) -> str:
+    """The summary line of a finished run."""
+    what = f"{result.frames} frames" if targets == 1 else f"{targets} targets through {result.frames} frames"
+    lost = f"lost in {result.lost_frames}" if targets == 1 else f"lost in {result.lost_frames} target-frames"
+    return (f"{name} tracked {what} at {result.fps:.1f} fps, {lost}"
+            + (f", {len(result.skipped)} undecodable skipped" if result.skipped else "")
+            + (f"; wrote {', '.join(written)}" if written else ""))
+
+
+def main(argv: Sequence[str]) -> int:
+    """``vidtrack VIDEO ...``: the exit code."""
+    from ..run import run_targets
+    from ..sources import open_source
+
+    args = build_parser().parse_args(argv)
+    boxes, box_names = init_boxes(args)
+    if args.max_frames is not None and args.max_frames < 1:
+        raise UsageError("--max-frames must be at least 1")
+    if args.flush_every < 1:
+        raise UsageError("--flush-every must be at least 1")
+    name = args.filter or default_filter()
+    settings = tracker_settings(args)
+    check_settings(name, settings)
+    multi = build_targets(name, args.seed, settings, boxes)
+    source = open_source(args.video)
+    source.on_skip = lambda message: say(f"warning: {message}; the tracker predicts through")
+    sinks = build_sinks(args, name, source)
 
     total = len(source) or None
     if args.max_frames is not None and total is not None:
         total = min(total, args.max_frames)
     bar = progress_bar(total=total, desc=name, quiet=args.quiet)
     try:
-        result = run_tracker(tracker, source, init_box, sinks, max_frames=args.max_frames,
-                             on_state=lambda state: bar.update(1), validate_box=check_box_in_frame)
+        result = run_targets(multi, source, boxes, sinks, max_frames=args.max_frames,
+                             on_frame=lambda frame, targets: bar.update(1),
+                             validate_boxes=boxes_in_frame(box_names))
     finally:
         bar.close()
     written = [str(s.path) for s in sinks if getattr(s, "path", None)]
     if not args.quiet:
-        say(f"{name} tracked {result.frames} frames at {result.fps:.1f} fps, lost in {result.lost_frames}"
-            + (f", {len(result.skipped)} undecodable skipped" if result.skipped else "")
-            + (f"; wrote {', '.join(written)}" if written else ""))
+        say(run_summary(name, result, len(boxes), written))
     if result.interrupted:
         name = signal.Signals(result.signum or signal.SIGINT).name
         say(f"interrupted after {result.frames} frames ({name}); outputs keep every tracked frame")
@@ -115,4 +146,3 @@ def main(argv: Sequence[str]) -> int:
     if result.decode_error:  # a video cut short: what was tracked is the result
         say(f"warning: {result.decode_error}; kept the {result.frames} frames tracked")
     return EXIT_OK
-

@@ -14,7 +14,7 @@ from __future__ import annotations
 import traceback
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Callable
+from typing import Any, Callable, Mapping
 
 import cv2
 
@@ -96,7 +96,8 @@ class _Collector:
         self.boxes: list[Box] = []
         self.states: list[tuple[float, str, bool]] = []
 
-    def write(self, frame: Frame, state: TrackState) -> None:
+    def write(self, frame: Frame, targets: Mapping[int, TrackState]) -> None:
+        state = targets[1]   # one target per job
         self.boxes.append(state.box)
         self.states.append((state.confidence, state.status, state.measured is not None))
 
@@ -149,7 +150,7 @@ def track_job(job: Job) -> JobOutput:
     bar = _NoBar() if job.progress is None else job.progress(total=stop - start,
                                                               desc=f"{job.filter_name} {sequence.name}")
     try:
-        result = run_tracker(tracker, source, init_box, sinks, on_state=lambda state: bar.update(1))
+        result = run_tracker(tracker, source, init_box, sinks, on_frame=lambda frame, targets: bar.update(1))
     finally:
         bar.close()
     if result.interrupted:

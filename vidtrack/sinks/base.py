@@ -6,7 +6,7 @@ import errno
 import os
 from contextlib import contextmanager
 from pathlib import Path
-from typing import IO, Iterator, Protocol, runtime_checkable
+from typing import IO, Iterator, Mapping, Protocol, runtime_checkable
 
 from ..errors import OutputError
 from ..types import Frame, TrackState
@@ -14,13 +14,15 @@ from ..types import Frame, TrackState
 
 @runtime_checkable
 class Sink(Protocol):
-    """Receives every frame's :class:`TrackState`; writes incrementally.
+    """Receives every frame's target states; writes incrementally.
 
-    ``write`` is called once per frame, in order, the first call with the
-    init state; ``close`` finishes the output (also after an interruption).
+    ``write(frame, targets)`` is called once per frame, in order, the first
+    call with the init states; ``targets`` maps each target ID (a positive
+    int; a one-target run is target 1) to its :class:`TrackState`, IDs
+    ascending.  ``close`` finishes the output (also after an interruption).
     """
 
-    def write(self, frame: Frame, state: TrackState) -> None: ...
+    def write(self, frame: Frame, targets: Mapping[int, TrackState]) -> None: ...
 
     def close(self) -> None: ...
 

@@ -6,24 +6,28 @@ recording per :class:`RerunSink`, on its own :class:`rerun.RecordingStream`
 tracker and sequence in ``vidtrack eval --rerun DIR``).
 
 Layout of a recording (one timeline, ``frame``; keep these names so that
-recordings of different versions line up):
+recordings of different versions line up).  Every target has its own subtree
+``targets/<id>/`` (a one-target run is target 1), its estimate drawn in the
+target's colour (:func:`vidtrack.sinks.palette.target_colour_rgb`):
 
-==============================  ===============================================
-entity                          content
-==============================  ===============================================
-``video/frame``                 the frame, JPEG (never raw)
-``video/boxes/estimate``        the filter's box (green, red while lost)
-``video/boxes/predicted``       the prior (blue)
-``video/boxes/measured``        the raw measurement (amber)
-``video/boxes/ground_truth``    the annotated box (white; eval only)
-``video/search_region``         where the measurer looked (grey)
-``stages/superpixels``          SegmentationImage, every ``superpixels_every``-th frame
-``stages/<image stage>``        ``svm_scores``, ``inliers``, ``score_map``,
-                                ``backprojection`` ... as small JPEG/PNG images
-``stages/<point stage>``        ``particles``, ``detections``: Points2D, radius by weight
-``filter/<name>``               ``confidence`` and the filter's scalars (time series)
-``log/status``                  TextLog: start, lost, re-acquired
-==============================  ===============================================
+=====================================  ========================================
+entity                                 content
+=====================================  ========================================
+``video/frame``                        the frame, JPEG (never raw)
+``video/boxes/ground_truth``           the annotated box (white; eval only)
+``targets/<id>/boxes/estimate``        the filter's box (the target's colour,
+                                       red while lost; labelled with the ID
+                                       when there are several targets)
+``targets/<id>/boxes/predicted``       the prior (blue)
+``targets/<id>/boxes/measured``        the raw measurement (amber)
+``targets/<id>/search_region``         where the measurer looked (grey)
+``targets/<id>/stages/superpixels``    SegmentationImage, every ``superpixels_every``-th frame
+``targets/<id>/stages/<image stage>``  ``svm_scores``, ``inliers``, ``score_map``,
+                                       ``backprojection`` ... as small JPEG/PNG images
+``targets/<id>/stages/<point stage>``  ``particles``, ``detections``: Points2D, radius by weight
+``targets/<id>/filter/<name>``         ``confidence`` and the filter's scalars (time series)
+``targets/<id>/log/status``            TextLog: start, lost, re-acquired
+=====================================  ========================================
 
 Image stages cover the search region (``TrackState.search_region``; names
 ending in ``_full`` cover the whole frame).  Each is logged with a
@@ -53,6 +57,7 @@ import rerun.blueprint as rrb
 from ..errors import OutputError, UsageError
 from ..types import Box, Frame, TrackState
 from .base import open_text_output
+from .palette import target_colour_rgb
 from .stage_images import (COLORMAPS, display_image, encode_jpeg, labels_for_segmentation, point_display,
                            region_transform, stage_kind)
 
@@ -72,14 +77,20 @@ def entity_name(name: str) -> str:
     return re.sub(r"[^A-Za-z0-9_.-]", "_", str(name)) or "_"
 
 
-#: Box entities -> (RGB, label, line radius px, draw order); logged once as static style.
+#: Box entities (under a target's subtree, or shared) -> (RGB, label, line radius px, draw order);
+#: logged once as static style.  The estimate's colour is the target's own.
 BOX_STYLES = {
-    "video/boxes/estimate": (ESTIMATE_RGB, "estimate", 1.5, 12.0),
-    "video/boxes/predicted": (PREDICTED_RGB, "predicted", 1.0, 10.0),
-    "video/boxes/measured": (MEASURED_RGB, "measured", 1.0, 10.0),
+    "boxes/estimate": (ESTIMATE_RGB, "estimate", 1.5, 12.0),
+    "boxes/predicted": (PREDICTED_RGB, "predicted", 1.0, 10.0),
+    "boxes/measured": (MEASURED_RGB, "measured", 1.0, 10.0),
     "video/boxes/ground_truth": (GROUND_TRUTH_RGB, "ground truth", 1.0, 11.0),
-    "video/search_region": (REGION_RGB, "search region", 1.0, 5.0),
+    "search_region": (REGION_RGB, "search region", 1.0, 5.0),
 }
+
+
+def target_path(target: int, name: str) -> str:
+    """The entity ``name`` of target ``target``: ``targets/<id>/<name>``."""
+    return f"targets/{int(target)}/{name}"
 
 
 def rgba32(rgb) -> int:
@@ -178,7 +189,8 @@ class RerunSink:
         self._image_stages: list[str] = []      # image stage names seen, in order (blueprint)
         self._point_stages: list[str] = []
         self._blueprint_key: tuple | None = None
-        self._last_status: str | None = None
+        self._last_status: dict[int, str] = {}   # target ID -> its status on the previous frame
+        self._targets: list[int] = []           # target IDs seen, ascending (blueprint)
         self._styled: set[str] = set()          # entities whose static style is logged
         self._pending: list[tuple[str, str, Any]] = []   # this frame's actions, committed at its end
         # Buffered rows per entity: path -> (kind, rows); a row is (frame, payload),
@@ -237,17 +249,23 @@ class RerunSink:
     # -- blueprint
 
     def _layout_key(self) -> tuple:
-        return tuple(self._image_stages), tuple(self._point_stages)
+        return tuple(self._image_stages), tuple(self._point_stages), tuple(self._targets)
 
     def _blueprint(self) -> rrb.Blueprint:
         """Frame with boxes and point stages; one overlay view per image stage; time series; status log."""
-        overlay = ["+ video/frame", "+ video/boxes/**", "+ video/search_region"]
-        frame_view = rrb.Spatial2DView(name="frame", origin="/",
-                                       contents=["+ video/**", *(f"+ stages/{p}" for p in self._point_stages)])
-        left = rrb.Vertical(frame_view, rrb.TextLogView(name="status", origin="log"), row_shares=[4, 1])
-        plots = rrb.TimeSeriesView(name="filter", origin="filter")
+        targets = self._targets or [1]
+        boxes = [entry for t in targets
+                 for entry in (f"+ {target_path(t, 'boxes')}/**", f"+ {target_path(t, 'search_region')}")]
+        overlay = ["+ video/frame", "+ video/boxes/**", *boxes]
+        points = [f"+ {target_path(t, 'stages/' + p)}" for t in targets for p in self._point_stages]
+        frame_view = rrb.Spatial2DView(name="frame", origin="/", contents=["+ video/**", *points, *boxes])
+        left = rrb.Vertical(frame_view, rrb.TextLogView(name="status", origin="targets"), row_shares=[4, 1])
+        plots = rrb.TimeSeriesView(name="filter", origin="/",
+                                   contents=[f"+ {target_path(t, 'filter')}/**" for t in targets])
         if self._image_stages:
-            stage_views = [rrb.Spatial2DView(name=s, origin="/", contents=[*overlay, f"+ stages/{s}"])
+            stage_views = [rrb.Spatial2DView(name=s, origin="/",
+                                             contents=[*(f"+ {target_path(t, 'stages/' + s)}" for t in targets),
+                                                       *overlay])
                            for s in self._image_stages]
             right = rrb.Vertical(rrb.Grid(*stage_views), plots, row_shares=[3, 2])
         else:
@@ -262,7 +280,7 @@ class RerunSink:
 
     # -- writing
 
-    def _style(self, path: str, kind: str, name: str = "") -> None:
+    def _style(self, path: str, kind: str, name: str = "", box: tuple | None = None) -> None:
         """Log ``path``'s colours, labels, widths and draw order once, as static data.
 
         Frames then carry only geometry, pixels and box colours (smaller and faster); entities
@@ -271,8 +289,8 @@ class RerunSink:
         if path in self._styled or any(item[1] == path for item in self._pending if item[0] == "style"):
             return
         if kind == "box":
-            rgb, label, radius, order = BOX_STYLES[path]
-            style = rr.Boxes2D.from_fields(labels=[label], show_labels=False, radii=[radius], draw_order=order)
+            label, show, radius, order = box
+            style = rr.Boxes2D.from_fields(labels=[label], show_labels=show, radii=[radius], draw_order=order)
         elif kind == "frame":
             style = rr.EncodedImage.from_fields(media_type="image/jpeg", draw_order=-20.0)
         elif kind == "points":
@@ -283,11 +301,11 @@ class RerunSink:
             style = rr.EncodedImage.from_fields(draw_order=-10.0)
         self._pending.append(("style", path, (style,)))
 
-    def write(self, frame: Frame, state: TrackState) -> None:
-        """Log ``frame`` and ``state`` on timeline ``frame`` at ``state.index``."""
+    def write(self, frame: Frame, targets: Mapping[int, TrackState]) -> None:
+        """Log ``frame`` and every target's state on timeline ``frame`` at the frame's index."""
         if self._rec is None:
             raise OutputError(f"cannot write {self.path or 'to Rerun'}: the recording is closed")
-        index = int(state.index)
+        index = int(frame.index)
         # Everything this frame logs is prepared first and committed at the end, so a
         # Ctrl-C while preparing leaves no half-logged frame in the recording.
         self._pending = []
@@ -295,30 +313,19 @@ class RerunSink:
 
         self._style("video/frame", "frame")
         self._row("video/frame", "frame", index, encode_jpeg(frame.image, self.jpeg_quality))
-        lost_rgb = LOST_RGB if state.status == "lost" else None
-        for path, box in (("video/boxes/estimate", state.box), ("video/boxes/predicted", state.predicted),
-                          ("video/boxes/measured", state.measured), ("video/search_region", state.search_region),
-                          ("video/boxes/ground_truth", self.ground_truth.get(index))):
-            if box is not None and box.is_valid():
-                self._style(path, "box")
-                rgb = lost_rgb if path == "video/boxes/estimate" and lost_rgb else BOX_STYLES[path][0]
-                self._row(path, "box", index, (box.as_array(), rgba32(rgb)))
-                shown.add(path)
+        truth = self.ground_truth.get(index)
+        if truth is not None and truth.is_valid():
+            rgb, label, radius, order = BOX_STYLES["video/boxes/ground_truth"]
+            self._style("video/boxes/ground_truth", "box", box=(label, False, radius, order))
+            self._row("video/boxes/ground_truth", "box", index, (truth.as_array(), rgba32(rgb)))
+            shown.add("video/boxes/ground_truth")
+        statuses = {}
+        for target, state in targets.items():
+            if target not in self._targets:
+                self._targets = sorted([*self._targets, int(target)])
+            self._write_target(frame, int(target), state, shown, several=len(targets) > 1)
+            statuses[int(target)] = self._status_message(int(target), state, several=len(targets) > 1)
 
-        for name, value in state.stages.items():
-            self._stage(frame, state, entity_name(name), value, shown)
-
-        self._row("filter/confidence", "scalar", index, float(state.confidence))
-        for name, value in state.scalars.items():
-            if name == "confidence":
-                continue
-            try:
-                number = float(value)
-            except (TypeError, ValueError):
-                continue
-            self._row(f"filter/{entity_name(name)}", "scalar", index, number)
-
-        status = self._status_message(state)
         for path in sorted(self._shown - shown):     # showed something last frame, nothing now
             kind = self._rows[path][0] if path in self._rows else None
             if kind is not None and kind != "labels":
@@ -342,13 +349,42 @@ class RerunSink:
                 self._rec.log(path, *payload)
         self._pending = []
         self._shown = shown
-        self._last_status = status
+        self._last_status = statuses
         self._update_blueprint()
         self._buffered += 1
         if self._buffered >= self.batch_frames:
             self._send_buffered()
             if self.path is not None:
                 self._rec.flush()  # the batch is in the file: a hard stop (kill -9) keeps it
+
+    def _write_target(self, frame: Frame, target: int, state: TrackState, shown: set[str], *, several: bool) -> None:
+        """Queue one target's boxes, stages and scalars under ``targets/<id>/``."""
+        index = int(frame.index)
+        for name, box in (("boxes/estimate", state.box), ("boxes/predicted", state.predicted),
+                          ("boxes/measured", state.measured), ("search_region", state.search_region)):
+            if box is None or not box.is_valid():
+                continue
+            path = target_path(target, name)
+            rgb, label, radius, order = BOX_STYLES[name]
+            if name == "boxes/estimate":
+                rgb = LOST_RGB if state.status == "lost" else target_colour_rgb(target)
+                label = f"{target}" if several else label
+            self._style(path, "box", box=(label, several and name == "boxes/estimate", radius, order))
+            self._row(path, "box", index, (box.as_array(), rgba32(rgb)))
+            shown.add(path)
+
+        for name, value in state.stages.items():
+            self._stage(frame, state, target_path(target, f"stages/{entity_name(name)}"), value, shown)
+
+        self._row(target_path(target, "filter/confidence"), "scalar", index, float(state.confidence))
+        for name, value in state.scalars.items():
+            if name == "confidence":
+                continue
+            try:
+                number = float(value)
+            except (TypeError, ValueError):
+                continue
+            self._row(target_path(target, f"filter/{entity_name(name)}"), "scalar", index, number)
 
     def _row(self, path: str, kind: str, index: int, payload) -> None:
         """Queue one row of ``path`` (``payload`` None: an empty row), sent with the next batch."""
@@ -394,9 +430,9 @@ class RerunSink:
             rows.clear()
         self._buffered = 0
 
-    def _stage(self, frame: Frame, state: TrackState, name: str, value, shown: set[str]) -> None:
-        """Queue (or log) one stage; add its entity to ``shown`` when it shows something from now on."""
-        path = f"stages/{name}"
+    def _stage(self, frame: Frame, state: TrackState, path: str, value, shown: set[str]) -> None:
+        """Queue (or log) one stage at ``path``; add it to ``shown`` when it shows something from now on."""
+        name = path.rsplit("/", 1)[-1]
         if value is None:
             return
         arr = value if isinstance(value, np.ndarray) else np.asarray(value)
@@ -442,17 +478,20 @@ class RerunSink:
         translation, scale = region_transform(region, shape)
         self._row(path, "image", index, (contents, media_type, translation, scale))
 
-    def _status_message(self, state: TrackState) -> str:
-        """Queue a TextLog at ``log/status`` on the first frame and on status changes; return the status."""
+    def _status_message(self, target: int, state: TrackState, *, several: bool) -> str:
+        """Queue a TextLog at ``targets/<id>/log/status`` on its first frame and on status changes; return the status."""
         status = state.status
-        if self._last_status is None:
-            self._log("log/status", rr.TextLog(f"frame {state.index}: {self.filter_name} starts {status} "
-                                               f"at {state.box}", level="INFO"))
-        elif status != self._last_status:
+        path = target_path(target, "log/status")
+        who = f"target {target} " if several else ""
+        last = self._last_status.get(target)
+        if last is None:
+            self._log(path, rr.TextLog(f"frame {state.index}: {self.filter_name} {who}starts {status} "
+                                       f"at {state.box}", level="INFO"))
+        elif status != last:
             if status == "lost":
-                text = f"frame {state.index}: lost (confidence {state.confidence:.2f}), predicting {state.box}"
-                self._log("log/status", rr.TextLog(text, level="WARN"))
+                text = f"frame {state.index}: {who}lost (confidence {state.confidence:.2f}), predicting {state.box}"
+                self._log(path, rr.TextLog(text, level="WARN"))
             else:
-                text = f"frame {state.index}: re-acquired at {state.box} (confidence {state.confidence:.2f})"
-                self._log("log/status", rr.TextLog(text, level="INFO"))
+                text = f"frame {state.index}: {who}re-acquired at {state.box} (confidence {state.confidence:.2f})"
+                self._log(path, rr.TextLog(text, level="INFO"))
         return status
