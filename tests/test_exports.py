@@ -242,3 +242,46 @@ def test_a_single_state_is_target_1(tmp_path, fmt, name):
         sink.write(Frame(0, image), targets)
         sink.close()
     assert (tmp_path / "single" / name).read_bytes() == (tmp_path / "mapping" / name).read_bytes()
+
+
+@pytest.mark.parametrize("suffix, fmt", [(".xml", None), (".jsonl", None), (".out", "mot")])
+def test_command_line_export_of_two_targets(tmp_path, suffix, fmt):
+    """``vidtrack VIDEO --init-box A --init-box B --export FILE``: every frame of both targets, as the boxes say."""
+    from conftest import SAMPLE_VIDEO
+
+    from vidtrack.cli import main
+
+    export = tmp_path / f"run{suffix}"
+    boxes = tmp_path / "boxes.txt"
+    argv = [str(SAMPLE_VIDEO), "--init-box", "56,20,31,45", "--init-box", "10,10,20,20", "--filter", "kalman-cv",
+            "--max-frames", "12", "--boxes", str(boxes), "--export", str(export), "-q"]
+    assert main(argv + (["--export-format", fmt] if fmt else [])) == 0
+    mot = [line.split(",") for line in boxes.read_text().splitlines()]
+    expected = {(int(r[0]) - 1, int(r[1])): [float(v) for v in r[2:6]] for r in mot}
+    assert len(expected) == 24
+    if suffix == ".xml":
+        tracks = ET.parse(export).getroot().findall("track")
+        assert sorted(int(t.get("id")) for t in tracks) == [1, 2]
+        got = {(int(b.get("frame")), int(t.get("id"))): [float(b.get(k)) for k in ("xtl", "ytl", "xbr", "ybr")]
+               for t in tracks for b in t.findall("box") if b.get("outside") == "0"}
+        got = {k: [x0, y0, x1 - x0, y1 - y0] for k, (x0, y0, x1, y1) in got.items()}
+    elif suffix == ".jsonl":
+        rows = [json.loads(line) for line in export.read_text().splitlines()]
+        got = {(r["frame"], r["id"]): r["box"] for r in rows}
+    else:
+        got = {(int(r[0]) - 1, int(r[1])): [float(v) for v in r[2:6]]
+               for r in (line.split(",") for line in export.read_text().splitlines())}
+    assert set(got) <= set(expected) and len(got) >= 20
+    for key, box in got.items():
+        np.testing.assert_allclose(box, expected[key], atol=0.01)
+
+
+def test_command_line_export_with_an_unknown_extension_is_one_line(tmp_path, capsys):
+    from conftest import SAMPLE_VIDEO
+
+    from vidtrack.cli import main
+
+    code = main([str(SAMPLE_VIDEO), "--init-box", "56,20,31,45", "--export", str(tmp_path / "run.csv"), "-q"])
+    err = capsys.readouterr().err.strip().splitlines()
+    assert code == 2 and len(err) == 1 and "export" in err[0]
+    assert not (tmp_path / "run.csv").exists()

@@ -27,6 +27,7 @@ from ..version import __version__
 from .common import (EXIT_FAILED, EXIT_OK, SUBCOMMANDS, OneLineParser, add_filter_argument, add_settings_arguments,
                      check_settings, default_filter, error_line, interrupted_exit_code, progress_bar, say,
                      tracker_settings)
+from ..sinks.exports import EXPORT_FORMATS
 from .init_boxes import add_init_box_arguments, boxes_in_frame, init_boxes
 
 if TYPE_CHECKING:
@@ -47,6 +48,10 @@ def build_parser() -> argparse.ArgumentParser:
                                                         "MOT Challenge lines frame,id,x,y,w,h,confidence,-1,-1,-1)")
     parser.add_argument("--log", metavar="FILE.csv",
                         help="write frame,id,timestamp,x,y,w,h,confidence,status per target and frame")
+    parser.add_argument("--export", metavar="FILE", help="write the tracks for an annotation tool: .xml CVAT for "
+                                                         "video 1.1, .txt MOT Challenge, .jsonl JSON lines")
+    parser.add_argument("--export-format", choices=EXPORT_FORMATS,
+                        help="the --export format when its extension does not say it")
     parser.add_argument("--rerun", metavar="FILE.rrd", help="write a Rerun recording of every stage")
     parser.add_argument("--rerun-spawn", action="store_true", help="also show the recording in a Rerun viewer")
     parser.add_argument("--flush-every", type=int, default=30, metavar="N",
@@ -75,6 +80,11 @@ def build_sinks(args: argparse.Namespace, name: str, source) -> list:
         if args.output:
             sinks.append(AnnotatedVideoSink(args.output, filter_name=name, fps=source.fps,
                                             batch=args.flush_every))
+        if args.export:
+            from ..sinks.exports import export_format, open_export
+
+            sinks.append(open_export(args.export, export_format(args.export, args.export_format),
+                                     filter_name=name, batch=args.flush_every))
         if args.rerun or args.rerun_spawn:
             from ..sinks.rerun import RerunSink
 
