@@ -49,8 +49,9 @@ def open_frames(args: argparse.Namespace):
     if not (math.isfinite(args.stream_timeout) and args.stream_timeout > 0):
         raise UsageError(f"--stream-timeout must be a positive number of seconds, got {args.stream_timeout:g}")
     source = open_input(args.video, realtime=args.realtime, stream_timeout=args.stream_timeout)
-    if hasattr(source, "on_warning"):
+    if is_live(source):
         source.on_warning = lambda message: say(f"warning: {message}")
+        source.limit = args.max_frames
     return source
 
 

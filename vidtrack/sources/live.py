@@ -106,6 +106,9 @@ class LiveSource:
     stream_error
         The one line saying why the input stopped part-way (:class:`StreamLost`),
         None when it ended normally.
+    limit
+        Frames to hand out at most (None: all), so a run of ``--max-frames N``
+        never waits for frame N + 1.
     on_warning
         Called from the reader's thread with a message (a reconnect that succeeded).
     """
@@ -117,6 +120,7 @@ class LiveSource:
         self.fps = float(reader.fps)
         self.received = self.dropped = self.taken = 0
         self.stream_error: str | None = None
+        self.limit: int | None = None
         self._failure: BaseException | None = None
         self._first: Frame | None = None
         self._slot: Frame | None = None
@@ -201,6 +205,8 @@ class LiveSource:
     # -- the tracker's side --------------------------------------------------------------------------------
 
     def _take(self) -> Frame | None:
+        if self.limit is not None and self.taken >= self.limit:
+            return None
         with self._condition:
             while self._first is None and self._slot is None and not self._done:
                 self._condition.wait(0.5)
