@@ -176,17 +176,30 @@ def test_a_video_piped_on_stdin_gives_the_files_boxes(clip, tmp_path, capfd):
     common = ["--init-box", INIT_BOX, "--filter", "kalman-cv"]
     code, err = vidtrack([str(path), *common, "--boxes", "file.txt", "-q"], capfd, tmp_path)
     assert code == 0, err
-    saved = os.dup(0)
-    try:
-        with open(path, "rb") as clip_file:   # the clip on file descriptor 0, as `vidtrack - < clip.ts` has it
-            os.dup2(clip_file.fileno(), 0)
-        code, err = vidtrack(["-", *common, "--boxes", "stdin.txt"], capfd, tmp_path)
-    finally:
-        os.dup2(saved, 0)
-        os.close(saved)
+    code, err = on_stdin(path, ["-", *common, "--boxes", "stdin.txt"], capfd, tmp_path)
     assert code == 0, err
     assert summary(err)[:3] == (N_FRAMES, N_FRAMES, 0)   # a pipe holds its writer back: nothing dropped
     assert (tmp_path / "stdin.txt").read_text() == (tmp_path / "file.txt").read_text()
+
+
+def on_stdin(path: Path, argv: list[str], capfd, cwd: Path) -> tuple[int, str]:
+    """``vidtrack ARGV`` with ``path`` on file descriptor 0, as ``vidtrack - < path`` has it."""
+    saved = os.dup(0)
+    try:
+        with open(path, "rb") as file:
+            os.dup2(file.fileno(), 0)
+        return vidtrack(argv, capfd, cwd)
+    finally:
+        os.dup2(saved, 0)
+        os.close(saved)
+
+
+def test_stdin_without_a_video_is_one_line_exit_2(tmp_path, capfd):
+    (tmp_path / "notes.txt").write_text("not a video\n" * 50)
+    code, err = on_stdin(tmp_path / "notes.txt", ["-", "--init-box", "1,1,5,5", "--boxes", "b.txt"], capfd, tmp_path)
+    assert code == 2 and err.strip().splitlines() == [
+        "vidtrack: error: cannot open the video on stdin: Invalid data found when processing input"], err
+    assert not (tmp_path / "b.txt").exists()
 
 
 def test_realtime_on_a_file_paces_it_and_drops_what_a_slow_tracker_misses(clip, tmp_path, capfd, slow_tracker):
