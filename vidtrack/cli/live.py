@@ -96,9 +96,11 @@ class LatencyStats:
 
 
 class LiveMonitor:
-    """Latency of every tracked frame of a live source, from ``source.arrival(index)`` to the result.
+    """Latency of every tracked frame of a live source, from its arrival to the result.
 
-    ``on_state(state)`` is the run's per-frame callback; ``line()`` the summary.
+    ``on_state(state)`` is the run's per-frame callback (it finds the
+    frame's arrival by ``source.arrival(state.index)``); a callback given the
+    frame itself calls ``record(frame.arrival)``.  ``line(tracked)`` is the summary.
     """
 
     def __init__(self, source) -> None:
@@ -110,7 +112,10 @@ class LiveMonitor:
 
     def on_state(self, state) -> None:
         """Record the latency of the frame ``state`` belongs to (called once its outputs are written)."""
-        arrival = self.source.arrival(state.index) if is_live(self.source) else None
+        self.record(self.source.arrival(state.index) if is_live(self.source) else None)
+
+    def record(self, arrival: float | None) -> None:
+        """Record the latency of a frame that arrived at ``arrival`` (``Frame.arrival``; None: not live), now."""
         if arrival is not None:
             self.latency.add(self._clock() - arrival)
 
