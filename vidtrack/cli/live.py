@@ -101,6 +101,8 @@ class LiveMonitor:
     ``on_state(state)`` is the run's per-frame callback (it finds the
     frame's arrival by ``source.arrival(state.index)``); a callback given the
     frame itself calls ``record(frame.arrival)``.  ``line(tracked)`` is the summary.
+    The first frame is not counted: it waits for the outputs to open and the
+    tracker to initialise on the init box, which is start-up, not tracking.
     """
 
     def __init__(self, source) -> None:
@@ -109,6 +111,7 @@ class LiveMonitor:
         self.source = source
         self.latency = LatencyStats()
         self._clock = time.monotonic
+        self._started = False
 
     def on_state(self, state) -> None:
         """Record the latency of the frame ``state`` belongs to (called once its outputs are written)."""
@@ -116,8 +119,9 @@ class LiveMonitor:
 
     def record(self, arrival: float | None) -> None:
         """Record the latency of a frame that arrived at ``arrival`` (``Frame.arrival``; None: not live), now."""
-        if arrival is not None:
+        if arrival is not None and self._started:
             self.latency.add(self._clock() - arrival)
+        self._started = True
 
     def line(self, tracked: int) -> str:
         """``live: received R, tracked T, dropped D; latency ... median M ms, 95th percentile P ms``."""
