@@ -14,6 +14,7 @@ from __future__ import annotations
 import os
 import re
 import signal
+import socket
 import subprocess
 import sys
 import time
@@ -202,6 +203,17 @@ def test_stdin_without_a_video_is_one_line_exit_2(tmp_path, capfd):
     assert code == 2 and err.strip().splitlines() == [
         "vidtrack: error: cannot open the video on stdin: Invalid data found when processing input"], err
     assert not (tmp_path / "b.txt").exists()
+
+
+def test_a_server_that_never_sends_is_one_line_exit_2_after_the_timeout(tmp_path, capfd):
+    with socket.create_server(("127.0.0.1", 0)) as listener:   # accepts (the kernel's backlog), never sends
+        url = f"tcp://127.0.0.1:{listener.getsockname()[1]}"
+        start = time.monotonic()
+        code, err = vidtrack([url, "--init-box", "1,1,5,5", "--stream-timeout", "1", "--boxes", "b.txt"], capfd,
+                             tmp_path)
+    assert code == 2 and err.strip().splitlines() == [f"vidtrack: error: cannot open stream {url}: no answer "
+                                                      f"within 1 s"], err
+    assert 1 <= time.monotonic() - start < 10 and not (tmp_path / "b.txt").exists()
 
 
 def test_realtime_on_a_file_paces_it_and_drops_what_a_slow_tracker_misses(clip, tmp_path, capfd, slow_tracker):

@@ -136,7 +136,9 @@ class PyAVStream:
             raise
         except (av.FFmpegError, OSError, ValueError) as exc:
             self.close()
-            raise SourceError(f"cannot open {self.label}: {_reason(exc)}") from None
+            reason = (f"no answer within {self.timeout:g} s" if isinstance(exc, av.ExitError) and self.timeout
+                      else _reason(exc))
+            raise SourceError(f"cannot open {self.label}: {reason}") from None
         if first is None:
             self.close()
             raise SourceError(f"{self.label} holds no decodable video frame")
