@@ -18,6 +18,7 @@ import pytest
 from vidtrack.cli import main
 
 from conftest import SAMPLE_VIDEO
+from live_helpers import FileServer, closed_port
 
 #: (argv with {placeholders}, text the one error line must contain).  Placeholders: files made
 #: by :func:`corpus_files`; {out} is the folder that must stay empty.
@@ -157,6 +158,15 @@ CASES: dict[str, tuple[list[str], str]] = {
     "trax: --set of an unknown option": (["trax", "--filter", "kalman-cv", "--set", "nope=1"],
                                          "filter kalman-cv: unknown option 'nope'"),
     "trax: missing --config file": (["trax", "--filter", "kalman-cv", "--config", "nope.toml"], "no such file"),
+    # -- live inputs ({http} serves the corpus files on 127.0.0.1; {unreachable} is a port nothing listens on)
+    "unreachable stream URL": (["{unreachable}", "--init-box", "1,1,5,5"], "Connection refused"),
+    "unreachable tcp stream": (["tcp://127.0.0.1:{closed_port}", "--init-box", "1,1,5,5"], "Connection refused"),
+    "camera index with no camera": (["57", "--init-box", "1,1,5,5"], "no camera at index 57"),
+    "stream that is text": (["{http}/groundtruth_rect.txt", "--init-box", "56,20,31,45"], "not a video"),
+    "stream that is audio": (["{http}/audio.wav", "--init-box", "1,1,5,5"], "no video stream"),
+    "stream of random bytes": (["{http}/random.mp4", "--init-box", "1,1,5,5"], "cannot open stream"),
+    "stream URL that is not found": (["{http}/nope.mjpg", "--init-box", "1,1,5,5"], "404"),
+    "--stream-timeout 0": (["{video}", "--init-box", "1,1,5,5", "--stream-timeout", "0"], "positive"),
 }
 
 #: vidtrack (track) cases get these outputs too, so a half file would show up in {out}.
@@ -255,10 +265,18 @@ def test_corpus_has_forty_cases():
     assert {argv[0] for argv, _ in CASES.values() if argv and argv[0] in SUBCOMMANDS} == set(SUBCOMMANDS)
 
 
+@pytest.fixture
+def served(tmp_path):
+    """The files of ``tmp_path`` over HTTP on 127.0.0.1, and a port there that nothing listens on."""
+    with FileServer(tmp_path) as server:
+        yield {"http": server.url, "closed_port": (port := closed_port()),
+               "unreachable": f"http://127.0.0.1:{port}/video.mjpg"}
+
+
 @pytest.mark.parametrize("case", list(CASES))
-def test_bad_input(case, tmp_path, capfd, monkeypatch):
+def test_bad_input(case, tmp_path, capfd, monkeypatch, served):
     monkeypatch.chdir(tmp_path)
-    files = corpus_files(tmp_path)
+    files = {**corpus_files(tmp_path), **served}
     argv, expected = CASES[case]
     if not argv or argv[0] not in SUBCOMMANDS:
         argv = [*TRACK_OUTPUTS, *argv]  # before the case's own options, which win

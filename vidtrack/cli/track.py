@@ -5,7 +5,10 @@ One target per ``--init-box`` (repeatable: IDs 1, 2 ...) or per line of
 side (:class:`~vidtrack.targets.MultiTargetTracker`).  Writes any of: the
 annotated video (``-o``), the boxes (``--boxes``: one ``x,y,w,h`` per frame,
 MOT Challenge lines with several targets), a per-frame CSV log (``--log``)
-and a Rerun recording (``--rerun``).  Exit 0,
+and a Rerun recording (``--rerun``).  VIDEO may also be a camera index, a
+stream URL or ``-`` (stdin), read live (:mod:`vidtrack.cli.live`): a stream
+that stops part-way and cannot be reopened ends the run with one line and
+exit 1, every output kept.  Exit 0,
 also when a frame in the middle does not decode (a warning names it; the
 tracker predicts through it) or the video stops decoding part way (a warning;
 every frame tracked is kept); 1 when an output fails part-way (a full disk:
@@ -29,6 +32,7 @@ from .common import (EXIT_FAILED, EXIT_OK, SUBCOMMANDS, OneLineParser, add_filte
                      tracker_settings)
 from ..sinks.exports import EXPORT_FORMATS
 from .init_boxes import add_init_box_arguments, boxes_in_frame, init_boxes
+from .live import INPUT_HELP, LiveMonitor, add_live_arguments, close_source, is_live, open_frames, stream_failure
 
 if TYPE_CHECKING:
     from ..targets import MultiTargetTracker
@@ -40,7 +44,7 @@ def build_parser() -> argparse.ArgumentParser:
         description="Track an object through a video with a robust filter. "
                     f"Subcommands: {', '.join(SUBCOMMANDS)} (vidtrack SUBCOMMAND --help).",
     )
-    parser.add_argument("video", help="video file (mp4, avi, webm ...) or folder of frame images")
+    parser.add_argument("video", help=INPUT_HELP)
     add_init_box_arguments(parser)
     add_filter_argument(parser)
     parser.add_argument("-o", "--output", metavar="FILE.mp4", help="write the annotated video here")
@@ -61,6 +65,7 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--max-frames", type=int, metavar="N", help="stop after N frames")
     parser.add_argument("-q", "--quiet", action="store_true", help="no progress bar or summary")
     parser.add_argument("--version", action="version", version=f"vidtrack {__version__}")
+    add_live_arguments(parser)
     add_settings_arguments(parser)
     return parser
 
@@ -92,6 +97,7 @@ def build_sinks(args: argparse.Namespace, name: str, source) -> list:
                                    batch_frames=args.flush_every))
     except VidtrackError:
         close_and_remove(sinks)  # no empty boxes file beside an unwritable video
+        close_source(source)
         raise
     return sinks
 
@@ -116,7 +122,6 @@ def run_summary(name: str, result, targets: int, written: list[str]) -> str:
 def main(argv: Sequence[str]) -> int:
     """``vidtrack VIDEO ...``: the exit code."""
     from ..run import run_targets
-    from ..sources import open_source
 
     args = build_parser().parse_args(argv)
     boxes, box_names = init_boxes(args)
@@ -128,7 +133,7 @@ def main(argv: Sequence[str]) -> int:
     settings = tracker_settings(args)
     check_settings(name, settings)
     multi = build_targets(name, args.seed, settings, boxes)
-    source = open_source(args.video)
+    source = open_frames(args)
     source.on_skip = lambda message: say(f"warning: {message}; the tracker predicts through")
     sinks = build_sinks(args, name, source)
 
@@ -136,21 +141,34 @@ def main(argv: Sequence[str]) -> int:
     if args.max_frames is not None and total is not None:
         total = min(total, args.max_frames)
     bar = progress_bar(total=total, desc=name, quiet=args.quiet)
+    monitor = LiveMonitor(source)
+
+    def on_frame(frame, targets) -> None:
+        monitor.record(frame.arrival)
+        bar.update(1)
+
     try:
         result = run_targets(multi, source, boxes, sinks, max_frames=args.max_frames,
-                             on_frame=lambda frame, targets: bar.update(1),
+                             on_frame=on_frame,
                              validate_boxes=boxes_in_frame(box_names))
     finally:
         bar.close()
+        close_source(source)
     written = [str(s.path) for s in sinks if getattr(s, "path", None)]
     if not args.quiet:
         say(run_summary(name, result, len(boxes), written))
+        if is_live(source):
+            say(monitor.line(result.frames))
     if result.interrupted:
         name = signal.Signals(result.signum or signal.SIGINT).name
         say(f"interrupted after {result.frames} frames ({name}); outputs keep every tracked frame")
         return interrupted_exit_code(result.signum)
     if result.output_error is not None:   # a full disk: every output holds the frames written before it
         print(error_line(f"{result.output_error}; the outputs keep the {result.frames} frames written before"),
+              file=sys.stderr)
+        return EXIT_FAILED
+    if stream_failure(source):   # a stream that stalled or broke and could not be reopened
+        print(error_line(f"{stream_failure(source)}; the outputs keep the {result.frames} frames tracked"),
               file=sys.stderr)
         return EXIT_FAILED
     if result.decode_error:  # a video cut short: what was tracked is the result

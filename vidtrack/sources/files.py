@@ -1,7 +1,9 @@
-"""Frame sources: a video file or a folder of images, decoded one frame at a time.
+"""File sources: a video file or a folder of images, decoded one frame at a time.
 
 Sources stream: they hold one decoded frame at a time, so memory stays flat
 however long the video is.  They are the only place frames are read from disk.
+A video's frames carry their presentation time (``Frame.timestamp``, seconds
+from the start of its stream); a folder's frames carry none.
 """
 
 from __future__ import annotations
@@ -12,8 +14,8 @@ from typing import Iterator
 import cv2
 import numpy as np
 
-from .errors import SourceError
-from .types import Frame
+from ..errors import SourceError
+from ..types import Frame
 
 IMAGE_SUFFIXES = {".png", ".jpg", ".jpeg", ".bmp", ".tif", ".tiff", ".pgm", ".ppm", ".webp"}
 
@@ -232,7 +234,9 @@ class VideoSource:
     frames' timestamps jump: the frames in between are yielded with the
     last decoded image in their place and listed in ``skipped`` and
     ``missing`` (as :class:`ImageFolderSource` does), ``on_skip`` is called
-    once per gap, and the frames after it keep their true indices.  A video
+    once per gap, and the frames after it keep their true indices.  Each
+    frame's ``timestamp`` is its presentation time in seconds (FFmpeg's pts
+    from the stream's start, as OpenCV reports it).  A video
     that stops decoding before its announced frame count sets
     ``decode_error`` and ends.
 
@@ -294,9 +298,9 @@ class VideoSource:
                 if previous is not None and stamp > index:   # FFmpeg resynchronised after corrupt data
                     self._gap(index, stamp)
                     for missing in range(index, stamp):
-                        yield Frame(missing, previous)
+                        yield Frame(missing, previous, timestamp=first_ms / 1000.0 + missing / self.fps)
                     index = stamp
-                yield Frame(index, image)
+                yield Frame(index, image, timestamp=milliseconds / 1000.0)
                 previous = image
                 index += 1
         finally:
