@@ -11,6 +11,8 @@ a live run with exit 130.
 
 from __future__ import annotations
 
+import csv
+
 import os
 import re
 import signal
@@ -83,10 +85,10 @@ def tracker_frame_time(stderr: str) -> float:
     return 1.0 / float(re.search(r"tracked \d+ frames at ([\d.]+) fps", stderr).group(1))
 
 
-def read_log(path: Path) -> list[list[str]]:
-    lines = path.read_text().splitlines()
-    assert lines[0].startswith("frame,")
-    return [line.split(",") for line in lines[1:]]
+def read_log(path: Path) -> list[dict[str, str]]:
+    """The per-frame log's rows (``frame,id,timestamp,x,y,w,h,confidence,status``), one dict each."""
+    with open(path, newline="") as file:
+        return list(csv.DictReader(file))
 
 
 def test_tcp_stream_gives_the_files_boxes_when_the_tracker_keeps_up(clip, tmp_path, capfd):
@@ -100,7 +102,10 @@ def test_tcp_stream_gives_the_files_boxes_when_the_tracker_keeps_up(clip, tmp_pa
     assert code == 0, err
     assert summary(err)[:3] == (frames, frames, 0)
     assert (tmp_path / "live.txt").read_text() == (tmp_path / "file.txt").read_text()
-    assert [int(row[0]) for row in read_log(tmp_path / "live.csv")] == list(range(frames))
+    rows = read_log(tmp_path / "live.csv")
+    assert [int(row["frame"]) for row in rows] == list(range(frames))
+    stamps = np.array([float(row["timestamp"]) for row in rows])   # the stream's clock, one frame apart
+    np.testing.assert_allclose(np.diff(stamps), 1 / CLIP_FPS, atol=1e-3)
 
 
 def test_stream_frames_carry_the_streams_timestamps_and_their_arrival(clip):
@@ -129,7 +134,7 @@ def test_a_tracker_slower_than_the_stream_drops_frames_and_keeps_its_latency(cli
     assert received == N_FRAMES and dropped > 0 and tracked + dropped == received, err
     assert frame_time >= 0.95 * SLOW_SECONDS   # (the summary rounds the fps)
     assert p95 <= 2 * frame_time, (p95, frame_time)
-    indices = [int(row[0]) for row in read_log(tmp_path / "live.csv")]
+    indices = [int(row["frame"]) for row in read_log(tmp_path / "live.csv")]
     assert len(indices) == tracked and indices[0] == 0
     assert min(np.diff(indices)) >= 1 and max(np.diff(indices)) > 1   # dropped frames leave gaps in the indices
 
@@ -166,8 +171,9 @@ def test_mjpeg_over_http_is_tracked_live(clip, tmp_path, capfd):
     assert code == 0, err
     received, tracked, dropped, _, _ = summary(err)
     assert tracked == 30 and received >= 30
-    rows = np.array(read_log(tmp_path / "l.csv"))
-    indices, boxes = rows[:, 0].astype(int), rows[:, 1:5].astype(float)
+    rows = read_log(tmp_path / "l.csv")
+    indices = np.array([int(row["frame"]) for row in rows])
+    boxes = np.array([[float(row[k]) for k in "xywh"] for row in rows])
     assert len(indices) == 30 and indices[0] == 0 and min(np.diff(indices)) >= 1
     centres = boxes[:, :2] + boxes[:, 2:] / 2
     true = np.array([[truth[i].x + truth[i].w / 2, truth[i].y + truth[i].h / 2] for i in indices])
