@@ -85,6 +85,9 @@ class FusionConfig:
     global_every: int = option(5, "then the whole frame is searched every this many frames")
     present: float | None = option(0.5, "a predicted-only frame is still tracking when the filter's peak of this "
                                         "quality lies at the prediction (none: it is lost)")
+    search_when_lost: bool = option(False, "a frame the filter reports lost (its calibrated confidence below "
+                                           "the threshold) is searched as an unmeasured one: wider bag, "
+                                           "re-detection")
     core: bool = option(True, "run the paper's superpixel / SVM / graph-cut core (off: the correlation filter "
                               "alone measures the box, an ablation)")
 
@@ -229,6 +232,12 @@ class MILMeasurer:
         }
         if cf is not None:
             stages["correlation"] = cf.response.astype(np.float32)
+            stages["psr"] = float(cf.psr)
+        if inlier is not None:
+            stages["inlier_coverage"] = inlier.coverage
+            if cf is not None:   # do the two cues agree on where the target is? (box units)
+                gap = np.linalg.norm(cf.centre - np.asarray(inlier.centre)) / max(prior.box.scale, 1e-6)
+                stages["cue_agreement"] = float(gap)
         present = (cf is not None and f.present is not None and cf.quality >= f.present
                    and np.linalg.norm(cf.centre - prior.box.center) <= 0.5 * prior.box.scale)
         return Superpixels(labels=labels, features=found.features, scores=scores, inliers=inliers, box=box,
@@ -275,7 +284,8 @@ class MILMeasurer:
                    and np.linalg.norm(cf.centre - prior.box.center) <= 0.5 * prior.box.scale)
         return Superpixels(labels=np.zeros((0, 0), np.int32), features=np.zeros((0, 0)), scores=empty,
                            inliers=empty.astype(bool), box=box, quality=float(cf.quality),
-                           stages={"correlation": cf.response.astype(np.float32)}, present=bool(present))
+                           stages={"correlation": cf.response.astype(np.float32), "psr": float(cf.psr)},
+                           present=bool(present))
 
     def _fuse(self, inlier: InlierBox, cf: CorrelationResult | None, prior: Estimate) -> tuple[Box, float]:
         """The measured box and its quality: the inlier centre moved by the correlation peak, the size from ``size_from``."""
@@ -292,8 +302,8 @@ class MILMeasurer:
         return Box.from_center(float(fx), float(fy), float(size[0]), float(size[1])), quality
 
     def _searching(self, prior: Estimate) -> bool:
-        """The last frame was only predicted (lost, or kept ``tracking`` by ``present``): search as when lost."""
-        return prior.status == LOST or self.coasting_
+        """Search as when lost: the last frame was only predicted, or (``search_when_lost``) reported lost."""
+        return self.coasting_ or (self.config.fusion.search_when_lost and prior.status == LOST)
 
     def _wait_correlation(self) -> CorrelationResult | None:
         """Wait for the queued correlation tasks in order (re-raising the first error); the last one's result."""
