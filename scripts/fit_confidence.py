@@ -9,20 +9,23 @@ the init frame left out), fits scikit-learn's ``LogisticRegression`` on the
 standardised cues, and writes ``vidtrack/filters/calibration/<tracker>.json``::
 
     python scripts/fit_confidence.py ../shared/data/sequences --trackers mil --seeds 0,1
-    python scripts/fit_confidence.py ../shared/data/sequences --trackers nh,pf,bayes --seeds 0 --passes 2
+    python scripts/fit_confidence.py ../shared/data/sequences --trackers nh,pf,bayes --seeds 0
 
-``--passes 2`` refits on the frames of the tracker run with the first fit:
-the score-map trackers' status starts their detector's re-detection and
-stops its learning, so their cues change once the calibration is on (the
-packaged files are the second pass).  ``mil``'s boxes do not depend on its
-status (``fusion.search_when_lost`` off), one pass suffices.  ``--cache DIR``
+``--passes 2`` refits on the frames of the tracker run with the first fit,
+for a tracker whose status feeds back into its search; with the packaged
+rules none does (``mil``: ``fusion.search_when_lost`` off; the score-map
+trackers: ``lost`` as without the calibration), one pass suffices.  ``--cache DIR``
 keeps the frames to refit without tracking again; ``--table`` prints false
 lost and missed loss at every threshold.
 
-The ``lost`` threshold is chosen on the same frames: the probability ``t``
-(on a grid 0.05 .. 0.95) minimising ``max(false_lost / 0.15, missed_loss / 0.02)``,
-i.e. balancing the two failure rates of :mod:`vidtrack.eval.confidence`
-against the targets they are held to.  The script prints, per tracker, the
+``mil``'s ``lost`` threshold is chosen on the same frames: the probability
+``t`` (on a grid 0.05 .. 0.95) minimising ``max(false_lost / 0.15,
+missed_loss / 0.02)``, i.e. balancing the two failure rates of
+:mod:`vidtrack.eval.confidence` against the targets they are held to.  The
+score-map trackers calibrate their uncalibrated confidence alone (Platt
+scaling: a monotone map, so its ranking of the frames is kept), and their threshold is the probability of
+a frame without an update: ``lost`` keeps its meaning there (the update was
+skipped) and their detector's re-detection, which it starts, is unchanged.  The script prints, per tracker, the
 frames used, the coefficients, and the tune ROC AUC, expected calibration
 error, false lost and missed loss of the fitted confidence.
 """
@@ -50,12 +53,24 @@ from vidtrack.sources import ImageFolderSource  # noqa: E402
 TUNE = "David,Sylvester,FaceOcc1,FaceOcc2,Girl,Tiger1,Tiger2,Man,Dancer2,Football1,Human9,Subway,MotorRolling"
 OUT = Path(__file__).resolve().parents[1] / "vidtrack" / "filters" / "calibration"
 
-#: tracker -> (its cues, the setting that switches its calibration off)
+#: The cues the packaged files use, chosen on tune by leave-one-sequence-out (fit on 12 sequences, score
+#: the 13th, ROC AUC of the pooled held-out probabilities).  mil: quality, PSR and inlier coverage
+#: (0.820; all of :data:`~vidtrack.filters.mil.CUES` 0.778, the quality alone 0.691).  The score-map
+#: trackers: their uncalibrated confidence alone, i.e. Platt scaling (pf 0.302, nh 0.423, bayes 0.369;
+#: all of :data:`~vidtrack.filters.score_trackers.CUES` 0.237, 0.372, 0.307).
+MIL_CUES = tuple(c for c in mil_filter.CUES if c[0] in ("quality", "psr", "inlier_coverage"))
+MAP_CUES = tuple(c for c in score_trackers.CUES if c[0] == "mass_quality")
+
+#: tracker -> (its cues, the setting that switches its calibration off, the rule of its lost threshold)
 TRACKERS = {
-    "mil": (mil_filter.CUES, {"kalman.confidence": None}),
-    "nh": (score_trackers.CUES, {"confidence": None}),
-    "pf": (score_trackers.CUES, {"confidence": None}),
-    "bayes": (score_trackers.CUES, {"confidence": None}),
+    "mil": (MIL_CUES, {"kalman.confidence": None}, "balance"),
+    "nh": (MAP_CUES, {"confidence": None}, "unmeasured"),
+    "pf": (MAP_CUES, {"confidence": None}, "unmeasured"),
+    "bayes": (MAP_CUES, {"confidence": None}, "unmeasured"),
+}
+THRESHOLD_RULES = {
+    "balance": "argmin over t of max(false_lost / 0.15, missed_loss / 0.02)",
+    "unmeasured": "just above the probability of a frame without an update (lost = the update was skipped)",
 }
 
 
@@ -64,7 +79,7 @@ def collect(name: str, sequences, seeds, calibrated: bool = False) -> tuple[list
 
     ``calibrated``: run the tracker with its packaged calibration (else switched off).
     """
-    _, off = TRACKERS[name]
+    _, off, _ = TRACKERS[name]
     off = {} if calibrated else off
     rows, ious = [], []
     for seed in seeds:
@@ -112,7 +127,7 @@ def fit(name: str, rows: list[dict], ious: np.ndarray, C: float) -> Calibration:
     """Logistic regression of ``IoU > 0.5`` on the standardised, clipped cues."""
     from sklearn.linear_model import LogisticRegression
 
-    cues, _ = TRACKERS[name]
+    cues, _, rule = TRACKERS[name]
     names = tuple(c[0] for c in cues)
     fill, lower, upper = (np.array([c[i] for c in cues], float) for i in (1, 2, 3))
     probe = Calibration(cues=names, mean=np.zeros(len(names)), scale=np.ones(len(names)),
@@ -125,7 +140,11 @@ def fit(name: str, rows: list[dict], ious: np.ndarray, C: float) -> Calibration:
     model = LogisticRegression(C=C, max_iter=1000).fit((X - mean) / scale, y)
     coef, intercept = model.coef_[0], float(model.intercept_[0])
     p = logistic_probability(X, mean, scale, coef, intercept)
-    threshold = choose_threshold(p, ious)
+    if rule == "balance":
+        threshold = choose_threshold(p, ious)
+    else:   # the probability of a frame whose every cue takes its missing value, rounded up
+        unmeasured = float(logistic_probability(np.clip(fill, lower, upper), mean, scale, coef, intercept))
+        threshold = float(np.ceil(unmeasured * 1000.0 + 1e-9) / 1000.0)
     return Calibration(cues=names, mean=mean, scale=scale, coef=coef, intercept=intercept, fill=fill,
                        lower=lower, upper=upper, lost_below=threshold)
 
@@ -154,7 +173,7 @@ def main(argv=None) -> int:
         for run in range(args.passes):
             cal, rows, ious = fit_pass(name, sequences, seeds, args, calibrated=run > 0)
             args.out.mkdir(parents=True, exist_ok=True)
-            (args.out / f"{name}.json").write_text(json.dumps(document(cal, rows, ious, args, seeds, run + 1),
+            (args.out / f"{name}.json").write_text(json.dumps(document(name, cal, rows, ious, args, seeds, run + 1),
                                                               indent=1) + "\n", encoding="utf-8")
             load_calibration.cache_clear()
     return 0
@@ -188,12 +207,12 @@ def fit_pass(name, sequences, seeds, args, *, calibrated: bool):
     return cal, rows, ious
 
 
-def document(cal: Calibration, rows, ious, args, seeds, passes: int) -> dict:
+def document(name: str, cal: Calibration, rows, ious, args, seeds, passes: int) -> dict:
     """The JSON file's content: the calibration and what it was fitted on."""
     data = cal.to_dict()
     data["fitted_on"] = {"sequences": args.sequences, "seeds": seeds, "frames": len(rows), "passes": passes,
                          "positive_rate": round(float(np.mean(ious > 0.5)), 4),
-                         "threshold_rule": "argmin over t of max(false_lost / 0.15, missed_loss / 0.02)"}
+                         "threshold_rule": THRESHOLD_RULES[TRACKERS[name][2]]}
     return data
 
 

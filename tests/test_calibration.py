@@ -56,7 +56,7 @@ COASTING = {"measured": 0.0, "quality": 0.0, "psr": 2.0, "coast": 3.0}
                                                     ("bayes", score_trackers.CUES, MAP_GOOD)])
 def test_packaged_calibrations_match_their_filters_cues(name, cues, good):
     cal = load_calibration(name)
-    assert cal.cues == tuple(c[0] for c in cues)
+    assert set(cal.cues) <= {c[0] for c in cues}
     assert 0.0 < cal.lost_below < 1.0
     # a typical well-measured frame is likely right and tracking; a long coast without a peak is lost
     assert cal.probability(good) > 0.5 and cal.probability(good) >= cal.lost_below

@@ -172,7 +172,8 @@ class MILKalmanFilter:
         centre, in box sizes), ``motion`` (the
         innovation's Mahalanobis length), ``scale_change`` (``|log|`` of the
         measured over the predicted area), ``coast`` (``log(1 + n)``, ``n``
-        frames without an update) and ``present``.
+        frames without an update) and ``present``.  No measurement at all
+        (``None``) is ``lost``, its probability capped below the threshold.
         """
         prior_box = self._box()
         box = None if measurement is None else measurement.box
@@ -215,6 +216,8 @@ class MILKalmanFilter:
         confidence = float(np.clip(quality, 0.0, 1.0))
         if self.calibration_ is not None:
             confidence = self.calibration_.probability(scalars)
+            if measurement is None:   # nothing measured at all (the search left the frame): lost
+                confidence = min(confidence, 0.99 * self.calibration_.lost_below)
             status = LOST if confidence < self.calibration_.lost_below else TRACKING
         cov = self.C_ @ self.P_ @ self.C_.T
         self.estimate_ = Estimate(self._box(), cov, confidence, status, scalars)

@@ -31,10 +31,12 @@ sizes of the estimate times the peak-score quality, ``lost`` when the update
 was skipped; with ``confidence="nh"`` (``"pf"``, ``"bayes"``: the recipes'
 default) it is the calibrated probability that the box overlaps the target by
 more than 0.5 (:mod:`vidtrack.filters.calibration`) from the cues :data:`CUES`
-(``measured``, the map's ``quality`` and ``psr``, the ``concentration``, the
-``motion`` of the estimate in box sizes, ``mass_quality`` the uncalibrated
-confidence (concentration times quality), ``coast`` ``log(1 + n)`` after ``n``
-skipped updates), ``lost`` below the calibration's threshold.  Each
+the calibration file names (``measured``, the map's ``quality`` and ``psr``,
+the ``concentration``, the ``motion`` of the estimate in box sizes,
+``mass_quality`` the uncalibrated confidence (concentration times quality),
+``coast`` ``log(1 + n)`` after ``n`` skipped updates; the packaged files use
+``mass_quality`` alone), ``lost`` below the calibration's threshold (and
+without any map).  Each
 exposes (in ``Estimate.stages``) ``{"particles": (N, 3) [cx, cy, weight]}`` in frame
 coordinates after every update.
 """
@@ -122,6 +124,8 @@ class _CentreBoxFilter:
         estimate = dataclasses.replace(estimate, scalars={**estimate.scalars, **cues})
         if self.calibration_ is not None:
             p = self.calibration_.probability(cues)
+            if measurement is None:   # no map at all: lost
+                p = min(p, 0.99 * self.calibration_.lost_below)
             estimate = dataclasses.replace(estimate, confidence=p,
                                            status=LOST if p < self.calibration_.lost_below else TRACKING)
         self.estimate_ = estimate
