@@ -70,7 +70,7 @@ TRACKERS = {
 }
 THRESHOLD_RULES = {
     "balance": "argmin over t of max(false_lost / 0.15, missed_loss / 0.02)",
-    "unmeasured": "just above the probability of a frame without an update (lost = the update was skipped)",
+    "unmeasured": "just above the probability of a frame without an update (the filter keeps its status: lost = the update was skipped)",
 }
 
 

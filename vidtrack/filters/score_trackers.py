@@ -35,8 +35,9 @@ the calibration file names (``measured``, the map's ``quality`` and ``psr``,
 the ``concentration``, the ``motion`` of the estimate in box sizes,
 ``mass_quality`` the uncalibrated confidence (concentration times quality),
 ``coast`` ``log(1 + n)`` after ``n`` skipped updates; the packaged files use
-``mass_quality`` alone), ``lost`` below the calibration's threshold (and
-without any map).  Each
+``mass_quality`` alone); the status stays ``lost`` when the update was
+skipped (the file's threshold is the probability of such a frame, and it
+starts the detector's re-detection).  Each
 exposes (in ``Estimate.stages``) ``{"particles": (N, 3) [cx, cy, weight]}`` in frame
 coordinates after every update.
 """
@@ -123,11 +124,12 @@ class _CentreBoxFilter:
             cues["mass_quality"] = cues["concentration"] * float(np.clip(cues["quality"], 0.0, 1.0))
         estimate = dataclasses.replace(estimate, scalars={**estimate.scalars, **cues})
         if self.calibration_ is not None:
+            # the status stays the filter's own (lost = the update was skipped: the detector's re-detection
+            # follows it); a lost frame's probability is kept below the file's threshold
             p = self.calibration_.probability(cues)
-            if measurement is None:   # no map at all: lost
+            if not measured:
                 p = min(p, 0.99 * self.calibration_.lost_below)
-            estimate = dataclasses.replace(estimate, confidence=p,
-                                           status=LOST if p < self.calibration_.lost_below else TRACKING)
+            estimate = dataclasses.replace(estimate, confidence=p)
         self.estimate_ = estimate
         return self.estimate_
 
