@@ -114,3 +114,30 @@ def test_opencv_tracker_gets_the_ok_flag_baseline(tmp_path):
     mean = json.loads((out / "summary.json").read_text())["opencv-kcf"]["mean"]
     assert set(mean["ok_flag"]) == set(conf.CONFIDENCE_KEYS) and 0 <= mean["lost_rate"] <= 1
     assert "OpenCV ok flag" in (out / "summary.md").read_text()
+
+
+def test_reliability_bins_and_expected_calibration_error():
+    confidence = [0.05, 0.15, 0.95, 0.9, 0.55, np.nan]
+    good = [False, True, True, True, False, True]
+    mean_conf, frac, count = conf.reliability(confidence, good)
+    assert count.tolist() == [1, 1, 0, 0, 0, 1, 0, 0, 0, 2]   # NaN left out; 0.95 and 0.9 share the last bin
+    assert mean_conf[9] == pytest.approx(0.925) and frac[9] == 1.0 and math.isnan(frac[2])
+    # |0.05 - 0| + |0.15 - 1| + |0.55 - 0| + 2 |0.925 - 1|, over 5 frames
+    assert conf.expected_calibration_error(confidence, good) == pytest.approx((0.05 + 0.85 + 0.55 + 0.15) / 5)
+    assert conf.expected_calibration_error([1.0, 0.0], [True, False]) == 0.0   # perfectly calibrated
+    assert math.isnan(conf.expected_calibration_error([], []))
+    pooled = conf.pooled_metrics([(np.array([0.9, 0.1]), np.array([0.8, 0.3]), np.array(["tracking", "lost"]),
+                                   np.array([True, False]))])
+    assert pooled["ece"] == pytest.approx((0.2 + 0.3) / 2) and sum(pooled["reliability"]["count"]) == 2
+
+
+def test_reliability_diagram_is_drawn_from_the_pooled_bins(tmp_path):
+    from vidtrack.eval.plots import reliability_plot
+
+    frames = [(np.array([0.9, 0.1, 0.6]), np.array([0.8, 0.3, 0.7]), np.array(["tracking"] * 3),
+               np.ones(3, bool))]
+    summary = {"a": {"mean": conf.pooled_metrics(frames)}, "b": {"mean": {"auc": 0.5}}}   # b: no bins, no line
+    png = reliability_plot(None, summary)
+    assert png[:8] == b"\x89PNG\r\n\x1a\n"
+    path = reliability_plot(tmp_path / "reliability.png", summary)
+    assert path.read_bytes()[:8] == png[:8]

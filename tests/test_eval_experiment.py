@@ -17,7 +17,7 @@ from vidtrack.recipes import Recipe, registry
 from vidtrack.types import TrackState
 
 METRICS = {"auc", "precision20", "pascal", "center_error", "norm_precision", "fps", "false_lost", "missed_loss",
-           "confidence_auc", "lost_rate"}
+           "confidence_auc", "ece", "lost_rate"}
 
 
 class StaticTracker:
@@ -95,8 +95,9 @@ def test_cli_end_to_end_resume_force_and_honest_fps(dataset, tmp_path, capsys):
     assert set(summary) == {"kalman-cv", "ms"}
     for name in summary:
         assert set(summary[name]) == {"Otb", "Mil", "mean"}
-        for row in summary[name].values():
-            assert set(row) == METRICS and 0 <= row["auc"] <= 1 and row["fps"] > 0
+        for sequence, row in summary[name].items():
+            extra = {"reliability"} if sequence == "mean" else set()   # the pooled reliability diagram's bins
+            assert set(row) == METRICS | extra and 0 <= row["auc"] <= 1 and row["fps"] > 0
     assert summary["kalman-cv"]["Otb"]["auc"] > 0.5  # it really tracks the synthetic target
     assert (out / "summary.md").read_text().count("| ms ") == 3 + 1  # scores: 2 sequences + mean; confidence: 1
     for png in ("success.png", "precision.png", "plots/Mil_success.png"):

@@ -15,6 +15,13 @@ questions, each a pure function of per-frame arrays:
   chance (the Mann-Whitney U statistic divided by ``n_pos * n_neg``, ties
   counting one half).
 
+* ``ece``: the expected calibration error of the confidence read as the
+  probability of ``IoU > 0.5``: the frames binned by confidence into ten
+  equal-width bins, ``sum_b (n_b / N) |mean confidence_b - fraction good_b|``
+  (Naeini, Cooper & Hauskrecht, "Obtaining well calibrated probabilities
+  using Bayesian binning", AAAI 2015); :func:`reliability` gives the bins
+  themselves, the reliability diagram's points.
+
 A metric whose denominator is empty (no ``lost`` frame, no frame of one
 class) is NaN.  The init frame is not scored here: its box is given, not
 tracked.
@@ -36,7 +43,9 @@ from ..errors import DatasetError
 SUFFIX = ".confidence.csv"
 HEADER = "row,confidence,status,measured"
 #: Keys each summary row gains (per sequence, and pooled over the frames of all sequences in ``mean``).
-CONFIDENCE_KEYS = ("false_lost", "missed_loss", "confidence_auc", "lost_rate")
+CONFIDENCE_KEYS = ("false_lost", "missed_loss", "confidence_auc", "ece", "lost_rate")
+#: Equal-width confidence bins of the reliability diagram and the ECE.
+N_BINS = 10
 LOST, TRACKING = "lost", "tracking"
 
 
@@ -126,8 +135,36 @@ def roc_auc(scores, labels) -> float:
     return float((ranks[labels].sum() - n_pos * (n_pos + 1) / 2.0) / (n_pos * n_neg))
 
 
+def reliability(confidence, labels, n_bins: int = N_BINS) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The reliability diagram: per equal-width confidence bin, ``(mean confidence, fraction true, count)``.
+
+    ``confidence`` in [0, 1] (clipped), ``labels`` bool, both ``(N,)``; NaN
+    confidences are left out.  Empty bins hold NaN means and count 0.
+    """
+    confidence = np.asarray(confidence, dtype=float).ravel()
+    labels = np.asarray(labels, dtype=bool).ravel()
+    keep = np.isfinite(confidence)
+    confidence, labels = np.clip(confidence[keep], 0.0, 1.0), labels[keep]
+    index = np.minimum((confidence * n_bins).astype(int), n_bins - 1)
+    count = np.bincount(index, minlength=n_bins).astype(float)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        mean_conf = np.bincount(index, weights=confidence, minlength=n_bins) / count
+        frac = np.bincount(index, weights=labels.astype(float), minlength=n_bins) / count
+    return mean_conf, frac, count.astype(int)
+
+
+def expected_calibration_error(confidence, labels, n_bins: int = N_BINS) -> float:
+    """``sum_b (n_b / N) |mean confidence_b - fraction true_b|`` over :func:`reliability`'s bins (NaN: no frame)."""
+    mean_conf, frac, count = reliability(confidence, labels, n_bins)
+    total = count.sum()
+    if total == 0:
+        return float("nan")
+    used = count > 0
+    return float(np.sum(count[used] / total * np.abs(mean_conf[used] - frac[used])))
+
+
 def confidence_metrics(ious, confidence, status) -> dict[str, float]:
-    """``false_lost``, ``missed_loss``, ``confidence_auc`` (vs IoU > 0.5) and ``lost_rate``.
+    """``false_lost``, ``missed_loss``, ``confidence_auc`` and ``ece`` (vs IoU > 0.5), and ``lost_rate``.
 
     Parameters
     ----------
@@ -141,6 +178,7 @@ def confidence_metrics(ious, confidence, status) -> dict[str, float]:
         "false_lost": false_lost(ious, status),
         "missed_loss": missed_loss(ious, status),
         "confidence_auc": roc_auc(confidence, ious > 0.5),
+        "ece": expected_calibration_error(confidence, ious > 0.5),
         "lost_rate": float(np.mean(status == LOST)) if status.size else float("nan"),
     }
 
@@ -165,12 +203,18 @@ def pooled_metrics(frames, *, ok_flag: bool = False) -> dict:
     ok_flag
         Also return ``ok_flag``: the same metrics for the bare ``measured``
         flag (OpenCV's ``ok`` for the ``opencv-*`` trackers).
+
+    The result also holds ``reliability``: :func:`reliability`'s bins as
+    lists ``{"confidence", "fraction", "count"}``, the reliability diagram.
     """
     frames = list(frames)
     if not frames:
         return dict.fromkeys(CONFIDENCE_KEYS, float("nan"))
     ious, confidence, status, measured = (np.concatenate([f[i] for f in frames]) for i in range(4))
     out: dict = confidence_metrics(ious, confidence, status)
+    mean_conf, frac, count = reliability(confidence, ious > 0.5)
+    out["reliability"] = {"confidence": [float(v) for v in mean_conf], "fraction": [float(v) for v in frac],
+                          "count": [int(v) for v in count]}
     if ok_flag:
         out["ok_flag"] = ok_flag_metrics(ious, measured)
     return out

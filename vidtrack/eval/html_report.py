@@ -23,7 +23,7 @@ from typing import Any, Mapping, Sequence
 import numpy as np
 
 from ..errors import OutputError
-from .plots import palette
+from .plots import palette, reliability_plot
 
 REPORT_FILE = "report.html"
 #: Ground-truth box colour in the thumbnails (BGR) and in the legend.
@@ -36,7 +36,7 @@ FAIL_BELOW = 0.3
 SCORE_COLUMNS = (("auc", "AUC", 3), ("precision20", "Prec@20", 3), ("norm_precision", "NormPrec", 3),
                  ("pascal", "PASCAL", 3), ("center_error", "CLE px", 1), ("fps", "fps", 1), ("lost_rate", "lost", 3),
                  ("false_lost", "false lost", 3), ("missed_loss", "missed loss", 3),
-                 ("confidence_auc", "conf. ROC AUC", 3))
+                 ("confidence_auc", "conf. ROC AUC", 3), ("ece", "ECE", 3))
 #: GOT-10k's average overlap and success rates, shown when a sequence has them.
 GOT10K_COLUMNS = (("ao", "AO", 3), ("sr50", "SR0.5", 3), ("sr75", "SR0.75", 3))
 
@@ -268,7 +268,7 @@ def _score_tables(summary: Mapping[str, Mapping[str, Mapping[str, Any]]],
 
 def _confidence_table(summary: Mapping[str, Mapping[str, Mapping[str, Any]]]) -> str:
     keys = (("lost_rate", "lost"), ("false_lost", "false lost"), ("missed_loss", "missed loss"),
-            ("confidence_auc", "conf. ROC AUC"))
+            ("confidence_auc", "conf. ROC AUC"), ("ece", "ECE"))
     rows = []
     for name, per in summary.items():
         mean = per.get("mean", {})
@@ -343,8 +343,14 @@ def render_report(summary: Mapping[str, Mapping[str, Mapping[str, Any]]], sequen
             f'src="{data_uri(p.read_bytes(), "image/png")}">' for p in images)
             + "</div>")
     parts += ["<h2>Can the confidence be trusted?</h2>", _confidence_table(summary),
-              '<p class="note">Frames of all sequences pooled, init frame excluded. The OpenCV ok flag rows '
-              "score OpenCV's own update() flag as the status (it stays True after the target has gone).</p>"]
+              '<p class="note">Frames of all sequences pooled, init frame excluded. ECE: expected calibration '
+              "error of the confidence read as the probability of IoU &gt; 0.5 (ten equal-width bins). The OpenCV "
+              "ok flag rows score OpenCV's own update() flag as the status (it stays True after the target has "
+              "gone).</p>"]
+    if any(isinstance(per.get("mean", {}).get("reliability"), Mapping) for per in summary.values()):
+        png = reliability_plot(None, summary, colours=colours)
+        parts.append(f'<div class="plots"><img alt="reliability" class="half" src="{data_uri(png, "image/png")}">'
+                     "</div>")
     if by_attribute and any(by_attribute.values()):
         parts += ["<h2>Success AUC by attribute</h2>", _attribute_table(by_attribute)]
     parts += ["<h2>Per sequence</h2>", per_sequence]

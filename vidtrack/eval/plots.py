@@ -158,3 +158,48 @@ def attribute_plot(path: str | Path, by_attribute: Mapping[str, Mapping[str, Map
         return _write(fig, path)
     finally:
         plt.close(fig)
+
+
+def reliability_plot(path: str | Path | None, summary: Mapping[str, Mapping[str, Mapping]], *,
+                     title: str = "Reliability diagram", colours=None) -> Path | bytes:
+    """The confidence's reliability diagram: per bin, the fraction of frames with IoU > 0.5 against the confidence.
+
+    One line per tracker from its pooled ``mean["reliability"]`` bins
+    (:func:`vidtrack.eval.confidence.reliability`), the ECE in the legend; the
+    diagonal is a perfectly calibrated confidence.  Writes ``path``, or with
+    ``path`` None returns the PNG's bytes.
+    """
+    import io
+
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    names = [n for n in summary if isinstance(summary[n].get("mean", {}).get("reliability"), Mapping)]
+    colours = colours or palette(list(summary))
+    fig, ax = plt.subplots(figsize=(5.5, 4.2), dpi=110)
+    try:
+        ax.plot([0, 1], [0, 1], color="0.6", linestyle="--", linewidth=1, label="calibrated")
+        for name in names:
+            mean = summary[name]["mean"]
+            bins = mean["reliability"]
+            x = np.array([np.nan if v is None else v for v in bins["confidence"]], float)
+            y = np.array([np.nan if v is None else v for v in bins["fraction"]], float)
+            used = np.asarray(bins["count"]) > 0
+            ece = mean.get("ece")
+            label = name if ece is None or not np.isfinite(ece) else f"{name} [ECE {ece:.3f}]"
+            ax.plot(x[used], y[used], marker="o", markersize=3, linewidth=1.5, label=label,
+                    color=_mpl_colour(colours, name))
+        ax.set(title=title, xlabel="Confidence", ylabel="Fraction of frames with IoU > 0.5", xlim=(0, 1),
+               ylim=(0, 1.02))
+        ax.grid(True, alpha=0.3)
+        ax.legend(loc="upper left", fontsize=7)
+        if path is not None:
+            return _write(fig, Path(path))
+        fig.tight_layout()
+        buffer = io.BytesIO()
+        fig.savefig(buffer, format="png")
+        return buffer.getvalue()
+    finally:
+        plt.close(fig)

@@ -92,7 +92,8 @@ def format_attribute_table(by_attribute: dict[str, dict[str, dict[str, Any]]],
 
 
 CONFIDENCE_COLUMNS = (("lost_rate", "lost", "{:.3f}"), ("false_lost", "false lost", "{:.3f}"),
-                      ("missed_loss", "missed loss", "{:.3f}"), ("confidence_auc", "conf. ROC AUC", "{:.3f}"))
+                      ("missed_loss", "missed loss", "{:.3f}"), ("confidence_auc", "conf. ROC AUC", "{:.3f}"),
+                      ("ece", "ECE", "{:.3f}"))
 
 
 def format_confidence_table(summary: dict[str, dict[str, dict[str, Any]]]) -> str:
@@ -101,7 +102,8 @@ def format_confidence_table(summary: dict[str, dict[str, dict[str, Any]]]) -> st
     ``lost``: fraction of frames marked lost; ``false lost``: of those, the
     fraction with IoU > 0; ``missed loss``: of the frames marked tracking, the
     fraction with IoU = 0; ``conf. ROC AUC``: the confidence as a predictor of
-    IoU > 0.5 (see :mod:`vidtrack.eval.confidence`).
+    IoU > 0.5; ``ECE``: the expected calibration error of the confidence read
+    as the probability of IoU > 0.5 (see :mod:`vidtrack.eval.confidence`).
     """
     header = ["filter", *(title for _, title, _ in CONFIDENCE_COLUMNS)]
     rows = []
@@ -118,7 +120,8 @@ CONFIDENCE_NOTE = ("Confidence (frames of all sequences pooled, init frame exclu
                    "frames marked lost; false lost = of those, the fraction whose box still overlaps the "
                    "target (IoU > 0); missed loss = of the frames marked tracking, the fraction with IoU = 0; "
                    "conf. ROC AUC = area under the ROC curve of the confidence predicting IoU > 0.5 (0.5 = "
-                   "chance). OpenCV ok flag rows: the same for OpenCV's own update() flag (lost where it "
+                   "chance); ECE = expected calibration error of the confidence as P(IoU > 0.5) (ten equal "
+                   "confidence bins; summary.json's \"reliability\" holds them). OpenCV ok flag rows: the same for OpenCV's own update() flag (lost where it "
                    "returns False).")
 
 

@@ -25,6 +25,7 @@ import numpy as np
 
 from ..config import option
 from ..types import LOST, TRACKING, Box, Estimate, Frame, Measurement
+from .calibration import load_calibration
 from .kalman import kf_predict, kf_update, motion_model
 
 # ------------------------------------------------------------------ pure maths
@@ -53,6 +54,20 @@ def box_from_state(x: np.ndarray, *, min_size: float = 4.0) -> Box:
     return Box.from_center(x[0], x[2], max(x[4], min_size), max(x[6], min_size))
 
 
+#: The calibrated confidence's cues: (name, value when missing, lower, upper); see :meth:`MILKalmanFilter.update`
+CUES = (
+    ("measured", 0.0, 0.0, 1.0),
+    ("quality", 0.0, 0.0, 1.0),
+    ("psr", 0.0, 0.0, 30.0),
+    ("svm_margin", -1.0, -3.0, 3.0),
+    ("inlier_coverage", 0.0, 0.0, 1.5),
+    ("motion", 6.0, 0.0, 10.0),
+    ("scale_change", 0.0, 0.0, 2.0),
+    ("coast", 0.0, 0.0, 6.0),
+    ("present", 0.0, 0.0, 1.0),
+    ("cue_agreement", 1.0, 0.0, 2.0),
+)
+
 # ------------------------------------------------------------------ the filter
 
 
@@ -74,6 +89,9 @@ class KalmanConfig:
                                                            "size")
     size_damping: float = option(0.9, "factor on the size velocities at every prediction (1: the paper's "
                                       "constant rate)")
+    confidence: str | None = option("mil", "calibrated confidence: the cues mapped to P(IoU > 0.5) by "
+                                           "vidtrack/filters/calibration/<name>.json, lost below its threshold "
+                                           "(none: the measurement's quality, lost when not measured)")
 
 
 class MILKalmanFilter:
@@ -99,6 +117,8 @@ class MILKalmanFilter:
 
     def initialize(self, box: Box, frame: Frame | None = None) -> None:
         c = self.config
+        self.calibration_ = None if c.confidence is None else load_calibration(c.confidence)
+        self.unmeasured_run_ = 0
         self.scale_ = box.scale
         self.F_, self.Q_, self.C_ = mil_motion_model(self.scale_, q_centre=c.q_centre, q_size=c.q_size)
         self.x_ = state_from_box(box)
@@ -141,14 +161,35 @@ class MILKalmanFilter:
         return np.diag(r ** 2) / max(quality, 0.05)
 
     def update(self, measurement: Measurement | None) -> Estimate:
+        """Kalman update with a usable, gated measurement; the confidence and status from the cues.
+
+        ``scalars`` carry the cues of the calibrated confidence
+        (:mod:`vidtrack.filters.calibration`): ``measured`` (the update
+        happened), ``quality`` (the measurement's), ``psr`` (the correlation
+        filter's target-only peak-to-sidelobe ratio), ``svm_margin`` (mean SVM
+        score of the inliers), ``inlier_coverage`` (their share of the box),
+        ``cue_agreement`` (distance from the correlation peak to the inliers'
+        centre, in box sizes), ``motion`` (the
+        innovation's Mahalanobis length), ``scale_change`` (``|log|`` of the
+        measured over the predicted area), ``coast`` (``log(1 + n)``, ``n``
+        frames without an update) and ``present``.  No measurement at all
+        (``None``) is ``lost``, its probability capped below the threshold.
+        """
+        prior_box = self._box()
         box = None if measurement is None else measurement.box
         quality = 0.0 if measurement is None else float(measurement.quality)
-        scalars: dict[str, float] = {}
+        stages = {} if measurement is None else measurement.stages
+        scalars: dict[str, float] = {"quality": quality}
+        for cue in ("psr", "inlier_coverage", "cue_agreement"):
+            if cue in stages:
+                scalars[cue] = float(stages[cue])
         if measurement is not None and len(measurement.inliers):
             scalars["inlier_count"] = float(np.sum(measurement.inliers))
             if np.any(measurement.inliers):
                 scalars["svm_margin"] = float(np.mean(measurement.scores[measurement.inliers]))
         status = LOST
+        if box is not None:
+            scalars["scale_change"] = float(abs(np.log(max(box.area, 1e-6) / max(prior_box.area, 1e-6))))
         if box is not None and quality >= self.config.lost_below:
             z = np.array([*box.center, box.w, box.h])
             R = self.measurement_noise(quality)
@@ -156,17 +197,28 @@ class MILKalmanFilter:
             S = (self.C_ @ self.P_ @ self.C_.T + R)[:2, :2]
             d2 = float(y @ np.linalg.solve(S, y))
             scalars["innovation"] = float(np.linalg.norm(y))
+            scalars["motion"] = float(np.sqrt(max(d2, 0.0)))
             if d2 <= self.config.gate:
                 result = kf_update(self.x_, self.P_, z, self.C_, R)  # Joseph form
                 self.x_, self.P_ = result.x, result.P
                 self._clamp()
                 status = TRACKING
         scalars["measured"] = float(status == TRACKING)
+        self.unmeasured_run_ = 0 if status == TRACKING else self.unmeasured_run_ + 1
+        scalars["coast"] = float(np.log1p(self.unmeasured_run_))
+        present = bool(getattr(measurement, "present", False))
+        scalars["present"] = float(present)
         if status == LOST:
             self._coast()
             quality = min(quality, self.config.lost_below * 0.99)
-            if getattr(measurement, "present", False):   # predicted only, but the target is there: not lost
+            if present:   # predicted only, but the target is there: not lost
                 status = TRACKING
+        confidence = float(np.clip(quality, 0.0, 1.0))
+        if self.calibration_ is not None:
+            confidence = self.calibration_.probability(scalars)
+            if measurement is None:   # nothing measured at all (the search left the frame): lost
+                confidence = min(confidence, 0.99 * self.calibration_.lost_below)
+            status = LOST if confidence < self.calibration_.lost_below else TRACKING
         cov = self.C_ @ self.P_ @ self.C_.T
-        self.estimate_ = Estimate(self._box(), cov, float(np.clip(quality, 0.0, 1.0)), status, scalars)
+        self.estimate_ = Estimate(self._box(), cov, confidence, status, scalars)
         return self.estimate_

@@ -24,10 +24,20 @@ Online Learning-based Framework for Tracking" (UAI 2010): the same score map
 
 Lengths are in box sizes, so a filter behaves alike on any frame size; the
 ``nh``, ``pf`` and ``bayes`` recipes (:mod:`vidtrack.recipes.normalhedge`)
-set the values they use on video.  All three mark the target ``lost`` when the map's peak score
-(``ScoreMap.quality``) is below ``lost_below``: they then skip the update and
-report their prediction.  Confidence is the weight (posterior) mass within
-``radius`` box sizes of the estimate, times the peak-score quality.  Each
+set the values they use on video.  All three skip the update and report their prediction when the map's peak
+score (``ScoreMap.quality``) is below ``lost_below``.  Their confidence is,
+with ``confidence=None``, the weight (posterior) mass within ``radius`` box
+sizes of the estimate times the peak-score quality, ``lost`` when the update
+was skipped; with ``confidence="nh"`` (``"pf"``, ``"bayes"``: the recipes'
+default) it is the calibrated probability that the box overlaps the target by
+more than 0.5 (:mod:`vidtrack.filters.calibration`) from the cues :data:`CUES`
+the calibration file names (``measured``, the map's ``quality`` and ``psr``,
+the ``concentration``, the ``motion`` of the estimate in box sizes,
+``mass_quality`` the uncalibrated confidence (concentration times quality),
+``coast`` ``log(1 + n)`` after ``n`` skipped updates; the packaged files use
+``mass_quality`` alone); the status stays ``lost`` when the update was
+skipped (the file's threshold is the probability of such a frame, and it
+starts the detector's re-detection).  Each
 exposes (in ``Estimate.stages``) ``{"particles": (N, 3) [cx, cy, weight]}`` in frame
 coordinates after every update.
 """
@@ -41,6 +51,7 @@ import numpy as np
 from scipy.ndimage import map_coordinates
 
 from ..types import LOST, TRACKING, Box, Estimate, Frame, Measurement, ScoreMap
+from .calibration import load_calibration
 from .grid_bayes import gaussian_transition, grid_predict_separable, grid_update_log
 from .normalhedge import NormalHedgeTracker, weight_concentration
 from .particle import ParticleFilter, weighted_mean_cov
@@ -53,6 +64,18 @@ def score_at_centres(smap: ScoreMap, centres: np.ndarray, outside: float = 0.0) 
     row = (centres[:, 1] - smap.box_size[1] / 2.0 - smap.origin[1]) / smap.step
     return map_coordinates(np.asarray(smap.scores, dtype=float), [row, col], order=1, mode="constant",
                            cval=outside)
+
+
+#: The calibrated confidence's cues: (name, value when missing, lower, upper); see :class:`_CentreBoxFilter`
+CUES = (
+    ("measured", 0.0, 0.0, 1.0),
+    ("quality", 0.0, 0.0, 1.0),
+    ("psr", 0.0, 0.0, 30.0),
+    ("concentration", 0.0, 0.0, 1.0),
+    ("motion", 0.0, 0.0, 2.0),
+    ("mass_quality", 0.0, 0.0, 1.0),
+    ("coast", 0.0, 0.0, 6.0),
+)
 
 
 def _usable(measurement: Measurement | None, lost_below: float) -> bool:
@@ -75,10 +98,40 @@ class _CentreBoxFilter:
         return np.clip(centre, 0.0, np.asarray(self.frame_size_, dtype=float))
 
     def _start(self, box: Box, frame: Frame | None) -> None:
-        """Book-keeping shared by every ``initialize``: box size, scale, frame size."""
+        """Book-keeping shared by every ``initialize``: box size, scale, frame size, the calibration."""
         self.size_ = box.size.copy()
         self.scale_ = box.scale
         self.frame_size_ = None if frame is None else (frame.width, frame.height)
+        confidence = getattr(self, "confidence", None)
+        self.calibration_ = None if confidence is None else load_calibration(confidence)
+        self.unmeasured_run_ = 0
+
+    def update(self, measurement: Measurement | None) -> Estimate:
+        """The filter's own update, then the confidence and status from the cues (see the module docstring)."""
+        prior = self.estimate_
+        estimate = self._update(measurement)
+        measured = estimate.status == TRACKING
+        self.unmeasured_run_ = 0 if measured else self.unmeasured_run_ + 1
+        cues = {"measured": float(measured),
+                "quality": 0.0 if measurement is None else float(getattr(measurement, "quality", 0.0)),
+                "coast": float(np.log1p(self.unmeasured_run_)),
+                "motion": float(np.linalg.norm(estimate.box.center - prior.box.center) / max(self.scale_, 1e-9))}
+        stages = getattr(measurement, "stages", None) or {}
+        if "psr" in stages:
+            cues["psr"] = float(stages["psr"])
+        if measured:
+            cues["concentration"] = float(estimate.scalars.get("concentration", 0.0))
+            cues["mass_quality"] = cues["concentration"] * float(np.clip(cues["quality"], 0.0, 1.0))
+        estimate = dataclasses.replace(estimate, scalars={**estimate.scalars, **cues})
+        if self.calibration_ is not None:
+            # the status stays the filter's own (lost = the update was skipped: the detector's re-detection
+            # follows it); a lost frame's probability is kept below the file's threshold
+            p = self.calibration_.probability(cues)
+            if not measured:
+                p = min(p, 0.99 * self.calibration_.lost_below)
+            estimate = dataclasses.replace(estimate, confidence=p)
+        self.estimate_ = estimate
+        return self.estimate_
 
     @property
     def estimate(self) -> Estimate:
@@ -115,13 +168,17 @@ class NormalHedgeBoxFilter(_CentreBoxFilter):
         the paper's identity ``F``.
     rng
         Random seed or Generator.
+    confidence
+        Name of the calibrated confidence (``vidtrack/filters/calibration/<name>.json``); None: the
+        concentration times the quality, ``lost`` when the update was skipped.
     """
 
     def __init__(self, n_actions: int = 100, alpha: float = 0.4, sigma_star: float = 0.25,
                  clip: tuple[float, float] = (-1.0, 1.0), outside_score: float = -1.0, lost_below: float = 0.35,
                  radius: float = 0.15, velocity_gain: float = 0.2, coast_damping: float = 0.5,
                  window: float = 0.0, prune_below: float = 0.3,
-                 rng: np.random.Generator | int | None = None) -> None:
+                 rng: np.random.Generator | int | None = None, confidence: str | None = None) -> None:
+        self.confidence = confidence
         self.window = window
         self.prune_below = prune_below
         self.velocity_gain = velocity_gain
@@ -178,7 +235,7 @@ class NormalHedgeBoxFilter(_CentreBoxFilter):
         outside = float(np.clip(self.outside_score, self.clip[0], self.clip[1]))
         return -score_at_centres(qmap, states, outside)
 
-    def update(self, measurement: Measurement | None) -> Estimate:
+    def _update(self, measurement: Measurement | None) -> Estimate:
         prior = self.estimate_
         quality = 0.0 if measurement is None else float(getattr(measurement, "quality", 0.0))
         if not _usable(measurement, self.lost_below):
@@ -218,13 +275,14 @@ class ParticleBoxFilter(_CentreBoxFilter):
         Random-walk standard deviation per frame, in box sizes.
     sigma_s
         Score noise of the likelihood.
-    outside_score, lost_below, radius, rng
+    outside_score, lost_below, radius, rng, confidence
         As in :class:`NormalHedgeBoxFilter`.
     """
 
     def __init__(self, n_particles: int = 100, sigma_d: float = 0.2, sigma_s: float = 0.1,
                  outside_score: float = 0.0, lost_below: float = 0.35, radius: float = 0.15,
-                 rng: np.random.Generator | int | None = None) -> None:
+                 rng: np.random.Generator | int | None = None, confidence: str | None = None) -> None:
+        self.confidence = confidence
         self.n_particles = n_particles
         self.sigma_d = sigma_d
         self.sigma_s = sigma_s
@@ -257,7 +315,7 @@ class ParticleBoxFilter(_CentreBoxFilter):
                                   self.estimate_.confidence, self.estimate_.status)
         return self.estimate_
 
-    def update(self, measurement: Measurement | None) -> Estimate:
+    def _update(self, measurement: Measurement | None) -> Estimate:
         prior = self.estimate_
         quality = 0.0 if measurement is None else float(getattr(measurement, "quality", 0.0))
         if not _usable(measurement, self.lost_below):
@@ -296,13 +354,15 @@ class GridBayesBoxFilter(_CentreBoxFilter):
         Smallest grid spacing, pixels (bounds the cost on small boxes).
     extent
         Half-width of the grid window, in box sizes (the detector's window reaches about 1.75).
-    sigma_d, sigma_s, outside_score, lost_below, radius
+    sigma_d, sigma_s, outside_score, lost_below, radius, confidence
         As in :class:`ParticleBoxFilter`.
     """
 
     def __init__(self, cell: float = 0.1, sigma_d: float = 0.1, sigma_s: float = 0.1,
                  outside_score: float = 0.0, lost_below: float = 0.35, radius: float = 0.15,
-                 min_spacing: float = 2.0, extent: float = 2.0, rng: np.random.Generator | int | None = None) -> None:
+                 min_spacing: float = 2.0, extent: float = 2.0, rng: np.random.Generator | int | None = None,
+                 confidence: str | None = None) -> None:
+        self.confidence = confidence
         self.cell = cell
         self.min_spacing = min_spacing
         self.extent = extent
@@ -376,7 +436,7 @@ class GridBayesBoxFilter(_CentreBoxFilter):
         self.estimate_ = Estimate(self._box(mean), cov, self.estimate_.confidence, self.estimate_.status)
         return self.estimate_
 
-    def update(self, measurement: Measurement | None) -> Estimate:
+    def _update(self, measurement: Measurement | None) -> Estimate:
         prior = self.estimate_
         quality = 0.0 if measurement is None else float(getattr(measurement, "quality", 0.0))
         if not _usable(measurement, self.lost_below):

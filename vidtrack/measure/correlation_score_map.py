@@ -47,7 +47,7 @@ def result_score_map(result: CorrelationResult) -> ScoreMap:
     region = Box(origin[0], origin[1], (w - 1) * result.step + bw, (h - 1) * result.step + bh)
     return ScoreMap(scores=scores, origin=origin, step=result.step, box_size=(float(bw), float(bh)),
                     quality=result.quality, search_region=region,
-                    stages={"score_map": scores})
+                    stages={"score_map": scores, "psr": float(result.psr)})
 
 
 class CorrelationScoreMapMeasurer:

@@ -277,6 +277,7 @@ class InlierBox:
     centre: tuple[float, float]
     size: np.ndarray
     quality: float
+    coverage: float = 0.0
 
 
 class MILAppearance:
@@ -393,11 +394,17 @@ class MILAppearance:
             size = found.box.size
         centre = centre + self.centre_offset_ * size
         fx, fy = found.region.to_frame(centre[0], centre[1])
-        return InlierBox(centre=(fx, fy), size=size / found.region.scale, quality=quality)
+        return InlierBox(centre=(fx, fy), size=size / found.region.scale, quality=quality, coverage=float(fraction))
 
     def confident(self, posterior: Estimate) -> bool:
-        """Whether a frame with this posterior teaches the model (``tracking`` and confidence ``>= learn_above``)."""
-        return posterior.status == TRACKING and posterior.confidence >= self.svm.learn_above
+        """Whether a frame with this posterior teaches the model (measured, of quality ``>= learn_above``).
+
+        The filter's ``measured`` and ``quality`` scalars when it gives them
+        (the reported status and confidence may be a calibrated judgement);
+        else its status and confidence.
+        """
+        measured = posterior.scalars.get("measured", float(posterior.status == TRACKING))
+        return bool(measured) and posterior.scalars.get("quality", posterior.confidence) >= self.svm.learn_above
 
     def learn(self, found: InlierSearch | None, box: Box) -> None:
         """One frame: relabel ``found`` from the posterior ``box`` (eq. 5), and update ``w`` every few frames.

@@ -85,11 +85,16 @@ class FusionConfig:
     global_every: int = option(5, "then the whole frame is searched every this many frames")
     present: float | None = option(0.5, "a predicted-only frame is still tracking when the filter's peak of this "
                                         "quality lies at the prediction (none: it is lost)")
+    search_when_lost: bool = option(False, "a frame the filter reports lost (its calibrated confidence below "
+                                           "the threshold) is searched as an unmeasured one: wider bag, "
+                                           "re-detection")
+    core: bool = option(True, "run the paper's superpixel / SVM / graph-cut core (off: the correlation filter "
+                              "alone measures the box, an ablation)")
 
     @property
     def uses_correlation(self) -> bool:
         """Whether the correlation filter runs at all."""
-        return self.refine or self.size_from == "cf"
+        return self.refine or self.size_from == "cf" or not self.core
 
 
 @dataclass(frozen=True)
@@ -185,8 +190,10 @@ class MILMeasurer:
             self.cf_ = CorrelationFilter(c.correlation)
             self.cf_.initialize(frame.image, box)
             self._background_tic("correlation", t0)
-        self.appearance_ = MILAppearance(c.superpixels, c.svm, c.graphcut, rng=self.rng)
-        self.appearance_.initialize(frame, box, timings=self.timings_)
+        self.appearance_ = None
+        if c.fusion.core:
+            self.appearance_ = MILAppearance(c.superpixels, c.svm, c.graphcut, rng=self.rng)
+            self.appearance_.initialize(frame, box, timings=self.timings_)
 
     def measure(self, frame: Frame, prior: Estimate) -> Superpixels | None:
         """Superpixels of the search region, SVM scores, graph-cut inliers, and the box fused with the filter's."""
@@ -202,6 +209,8 @@ class MILMeasurer:
         # the correlation filter (on the second thread) and the superpixel side run side by side
         if self.cf_ is not None:
             self.tasks_.append(self.worker_.submit(self._correlate, frame, prior, whole_frame))
+        if self.appearance_ is None:
+            return self._correlation_alone(prior)
         found = self.appearance_.search(frame, prior, sigma, searching=searching)
         cf = self._wait_correlation()
         self.cf_result_ = cf
@@ -223,6 +232,12 @@ class MILMeasurer:
         }
         if cf is not None:
             stages["correlation"] = cf.response.astype(np.float32)
+            stages["psr"] = float(cf.psr)
+        if inlier is not None:
+            stages["inlier_coverage"] = inlier.coverage
+            if cf is not None:   # do the two cues agree on where the target is? (box units)
+                gap = np.linalg.norm(cf.centre - np.asarray(inlier.centre)) / max(prior.box.scale, 1e-6)
+                stages["cue_agreement"] = float(gap)
         present = (cf is not None and f.present is not None and cf.quality >= f.present
                    and np.linalg.norm(cf.centre - prior.box.center) <= 0.5 * prior.box.scale)
         return Superpixels(labels=labels, features=found.features, scores=scores, inliers=inliers, box=box,
@@ -238,13 +253,39 @@ class MILMeasurer:
         """
         self.coasting_ = posterior.scalars.get("measured", 1.0) == 0.0
         data = self.last_
-        confident = data is not None and self.appearance_.confident(posterior)
+        if self.appearance_ is None:
+            confident = (not self.coasting_ and posterior.scalars.get("quality", posterior.confidence)
+                         >= self.config.svm.learn_above)
+        else:
+            confident = data is not None and self.appearance_.confident(posterior)
         cf = self.cf_result_
         if confident and cf is not None and cf.quality >= self.config.fusion.learn_above:
             self.tasks_.append(self.worker_.submit(self._update_correlation, frame.image, posterior.box))
-        self.appearance_.learn(data if confident else None, posterior.box)
+        if self.appearance_ is not None:
+            self.appearance_.learn(data if confident else None, posterior.box)
 
     # -- helpers --------------------------------------------------------
+
+    def _correlation_alone(self, prior: Estimate) -> Superpixels | None:
+        """The measurement without the superpixel core: the correlation peak and scale, of the filter's quality.
+
+        Re-detection has nothing to verify a distant peak with: a peak of
+        quality ``reacquire`` found by the whole-frame search is taken as it is.
+        """
+        f = self.config.fusion
+        cf = self._wait_correlation()
+        self.cf_result_ = cf
+        if cf is None:
+            return None
+        size = cf.size if f.size_from == "cf" else prior.box.size
+        box = Box.from_center(float(cf.centre[0]), float(cf.centre[1]), float(size[0]), float(size[1]))
+        empty = np.zeros(0)
+        present = (f.present is not None and cf.quality >= f.present
+                   and np.linalg.norm(cf.centre - prior.box.center) <= 0.5 * prior.box.scale)
+        return Superpixels(labels=np.zeros((0, 0), np.int32), features=np.zeros((0, 0)), scores=empty,
+                           inliers=empty.astype(bool), box=box, quality=float(cf.quality),
+                           stages={"correlation": cf.response.astype(np.float32), "psr": float(cf.psr)},
+                           present=bool(present))
 
     def _fuse(self, inlier: InlierBox, cf: CorrelationResult | None, prior: Estimate) -> tuple[Box, float]:
         """The measured box and its quality: the inlier centre moved by the correlation peak, the size from ``size_from``."""
@@ -261,8 +302,8 @@ class MILMeasurer:
         return Box.from_center(float(fx), float(fy), float(size[0]), float(size[1])), quality
 
     def _searching(self, prior: Estimate) -> bool:
-        """The last frame was only predicted (lost, or kept ``tracking`` by ``present``): search as when lost."""
-        return prior.status == LOST or self.coasting_
+        """Search as when lost: the last frame was only predicted, or (``search_when_lost``) reported lost."""
+        return self.coasting_ or (self.config.fusion.search_when_lost and prior.status == LOST)
 
     def _wait_correlation(self) -> CorrelationResult | None:
         """Wait for the queued correlation tasks in order (re-raising the first error); the last one's result."""

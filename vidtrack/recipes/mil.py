@@ -64,7 +64,7 @@ MIL = MILConfig()
 MIL_PAPER = MILConfig(
     graphcut=GraphCutConfig(lost_bag=False),
     fusion=FusionConfig(refine=False, size_from="inliers", redetect=False, present=None),
-    kalman=KalmanConfig(coast_damping=1.0, size_damping=1.0),
+    kalman=KalmanConfig(coast_damping=1.0, size_damping=1.0, confidence=None),
 )
 
 RECIPES = {

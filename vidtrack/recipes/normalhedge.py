@@ -35,6 +35,8 @@ class NormalHedgeConfig:
     n_actions: int = option(100, "N, the number of actions (box centres) NormalHedge weighs")
     alpha: float = option(0.4, "fraction of the actions re-sampled when their weight vanishes")
     sigma_star: float = option(0.25, "random-walk step of a re-sampled action, in box sizes")
+    confidence: str | None = option("nh", "calibrated confidence: vidtrack/filters/calibration/<name>.json "
+                                           "(none: concentration times quality)")
 
 
 @dataclass(frozen=True)
@@ -44,6 +46,8 @@ class ParticleConfig:
     detector: Detector = option("cf", DETECTOR_DOC)
     n_particles: int = option(100, "number of particles")
     sigma_d: float = option(0.2, "random-walk step of a particle per frame, in box sizes")
+    confidence: str | None = option("pf", "calibrated confidence: vidtrack/filters/calibration/<name>.json "
+                                           "(none: concentration times quality)")
 
 
 @dataclass(frozen=True)
@@ -52,6 +56,13 @@ class GridBayesConfig:
 
     detector: Detector = option("cf", DETECTOR_DOC)
     sigma_d: float = option(0.1, "random-walk step per frame, in box sizes")
+    confidence: str | None = option("bayes", "calibrated confidence: vidtrack/filters/calibration/<name>.json "
+                                           "(none: concentration times quality)")
+
+
+def _calibrated(config) -> str | None:
+    """The calibration a configuration names; fitted on the cf detector's maps, so none for the others."""
+    return config.confidence if config.detector == "cf" else None
 
 
 def _tracker(detector: str, box_filter) -> Tracker:
@@ -62,16 +73,19 @@ def _tracker(detector: str, box_filter) -> Tracker:
 def build_nh(config: NormalHedgeConfig, seed=None) -> Tracker:
     return _tracker(config.detector, NormalHedgeBoxFilter(n_actions=config.n_actions, alpha=config.alpha,
                                                           sigma_star=config.sigma_star,
+                                                          confidence=_calibrated(config),
                                                           rng=np.random.default_rng(seed)))
 
 
 def build_pf(config: ParticleConfig, seed=None) -> Tracker:
     return _tracker(config.detector, ParticleBoxFilter(n_particles=config.n_particles, sigma_d=config.sigma_d,
-                                                       rng=np.random.default_rng(seed)))
+                                                       rng=np.random.default_rng(seed),
+                                                       confidence=_calibrated(config)))
 
 
 def build_bayes(config: GridBayesConfig, seed=None) -> Tracker:
-    return _tracker(config.detector, GridBayesBoxFilter(sigma_d=config.sigma_d, rng=np.random.default_rng(seed)))
+    return _tracker(config.detector, GridBayesBoxFilter(sigma_d=config.sigma_d, rng=np.random.default_rng(seed),
+                                                        confidence=_calibrated(config)))
 
 
 # nh and bayes on the correlation-filter map: more actions, a shorter regret memory, wider

@@ -1,0 +1,220 @@
+"""Fit the calibrated confidence of ``mil``, ``nh``, ``pf`` and ``bayes`` on the *tune* split.
+
+Runs each tracker (its calibration switched off, so the cues are those of
+the uncalibrated tracker) over the *tune* sequences of
+``../shared/data/sequences`` at the given seeds, records every frame's cues
+(the filter's ``scalars``, see :mod:`vidtrack.filters.calibration`) and
+whether its box overlaps the ground truth by more than 0.5 (annotated frames,
+the init frame left out), fits scikit-learn's ``LogisticRegression`` on the
+standardised cues, and writes ``vidtrack/filters/calibration/<tracker>.json``::
+
+    python scripts/fit_confidence.py ../shared/data/sequences --trackers mil --seeds 0,1
+    python scripts/fit_confidence.py ../shared/data/sequences --trackers nh,pf,bayes --seeds 0
+
+``--passes 2`` refits on the frames of the tracker run with the first fit,
+for a tracker whose status feeds back into its search; with the packaged
+rules none does (``mil``: ``fusion.search_when_lost`` off; the score-map
+trackers: ``lost`` as without the calibration), one pass suffices.  ``--cache DIR``
+keeps the frames to refit without tracking again; ``--table`` prints false
+lost and missed loss at every threshold.
+
+``mil``'s ``lost`` threshold is chosen on the same frames: the probability
+``t`` (on a grid 0.05 .. 0.95) minimising ``max(false_lost / 0.15,
+missed_loss / 0.02)``, i.e. balancing the two failure rates of
+:mod:`vidtrack.eval.confidence` against the targets they are held to.  The
+score-map trackers calibrate their uncalibrated confidence alone (Platt
+scaling: a monotone map, so its ranking of the frames is kept), and their threshold is the probability of
+a frame without an update: ``lost`` keeps its meaning there (the update was
+skipped) and their detector's re-detection, which it starts, is unchanged.  The script prints, per tracker, the
+frames used, the coefficients, and the tune ROC AUC, expected calibration
+error, false lost and missed loss of the fitted confidence.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from pathlib import Path
+
+import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+
+from vidtrack.eval import confidence as conf_metrics  # noqa: E402
+from vidtrack.eval import metrics  # noqa: E402
+from vidtrack.eval.datasets import annotated_rows, load_dataset  # noqa: E402
+from vidtrack.filters import mil as mil_filter  # noqa: E402
+from vidtrack.filters import score_trackers  # noqa: E402
+from vidtrack.filters.calibration import Calibration, load_calibration, logistic_probability  # noqa: E402
+from vidtrack.recipes import build_tracker  # noqa: E402
+from vidtrack.sources import ImageFolderSource  # noqa: E402
+
+TUNE = "David,Sylvester,FaceOcc1,FaceOcc2,Girl,Tiger1,Tiger2,Man,Dancer2,Football1,Human9,Subway,MotorRolling"
+OUT = Path(__file__).resolve().parents[1] / "vidtrack" / "filters" / "calibration"
+
+#: The cues the packaged files use, chosen on tune by leave-one-sequence-out (fit on 12 sequences, score
+#: the 13th, ROC AUC of the pooled held-out probabilities).  mil: quality, PSR and inlier coverage
+#: (0.820; all of :data:`~vidtrack.filters.mil.CUES` 0.778, the quality alone 0.691).  The score-map
+#: trackers: their uncalibrated confidence alone, i.e. Platt scaling (pf 0.302, nh 0.423, bayes 0.369;
+#: all of :data:`~vidtrack.filters.score_trackers.CUES` 0.237, 0.372, 0.307).
+MIL_CUES = tuple(c for c in mil_filter.CUES if c[0] in ("quality", "psr", "inlier_coverage"))
+MAP_CUES = tuple(c for c in score_trackers.CUES if c[0] == "mass_quality")
+
+#: tracker -> (its cues, the setting that switches its calibration off, the rule of its lost threshold)
+TRACKERS = {
+    "mil": (MIL_CUES, {"kalman.confidence": None}, "balance"),
+    "nh": (MAP_CUES, {"confidence": None}, "unmeasured"),
+    "pf": (MAP_CUES, {"confidence": None}, "unmeasured"),
+    "bayes": (MAP_CUES, {"confidence": None}, "unmeasured"),
+}
+THRESHOLD_RULES = {
+    "balance": "argmin over t of max(false_lost / 0.15, missed_loss / 0.02)",
+    "unmeasured": "just above the probability of a frame without an update (the filter keeps its status: lost = the update was skipped)",
+}
+
+
+def collect(name: str, sequences, seeds, calibrated: bool = False) -> tuple[list[dict], np.ndarray]:
+    """Per scored frame: the filter's scalars, and its IoU with the ground truth.
+
+    ``calibrated``: run the tracker with its packaged calibration (else switched off).
+    """
+    _, off, _ = TRACKERS[name]
+    off = {} if calibrated else off
+    rows, ious = [], []
+    for seed in seeds:
+        for seq in sequences:
+            start, stop = seq.eval_range
+            source = ImageFolderSource(seq.path, files=list(seq.files[start:stop]))
+            tracker = build_tracker(name, seed=seed, settings=off)
+            init = seq.to_pixels(seq.ground_truth_box(start))
+            scalars, boxes = [], []
+            for count, frame in enumerate(source):
+                state = tracker.initialize(frame, init) if count == 0 else tracker.step(frame)
+                boxes.append(seq.from_pixels(state.box).as_array())
+                scalars.append(dict(state.scalars))
+            iou = metrics.iou(np.array(boxes), seq.ground_truth[start:stop])
+            valid = annotated_rows(seq.ground_truth[start:stop])
+            for k in range(1, len(boxes)):
+                if valid[k]:
+                    rows.append(scalars[k])
+                    ious.append(iou[k])
+            print(f"  {name} seed {seed} {seq.name}: {len(boxes)} frames", file=sys.stderr, flush=True)
+    return rows, np.array(ious)
+
+
+def threshold_table(p: np.ndarray, ious: np.ndarray) -> list[tuple[float, float, float, float]]:
+    """``(t, false lost, missed loss, lost rate)`` of ``lost = p < t`` for t = 0.05, 0.10, ..., 0.95."""
+    table = []
+    for t in np.round(np.arange(0.05, 0.96, 0.05), 2):
+        status = np.where(p < t, conf_metrics.LOST, conf_metrics.TRACKING)
+        table.append((float(t), conf_metrics.false_lost(ious, status), conf_metrics.missed_loss(ious, status),
+                      float(np.mean(p < t))))
+    return table
+
+
+def choose_threshold(p: np.ndarray, ious: np.ndarray) -> float:
+    """The ``lost`` threshold balancing false lost (target 0.15) and missed loss (target 0.02) on these frames."""
+    best, best_t = np.inf, 0.5
+    for t, fl, ml, _ in threshold_table(p, ious):
+        cost = max(0.0 if np.isnan(fl) else fl / 0.15, 0.0 if np.isnan(ml) else ml / 0.02)
+        if cost < best:
+            best, best_t = cost, t
+    return best_t
+
+
+def fit(name: str, rows: list[dict], ious: np.ndarray, C: float) -> Calibration:
+    """Logistic regression of ``IoU > 0.5`` on the standardised, clipped cues."""
+    from sklearn.linear_model import LogisticRegression
+
+    cues, _, rule = TRACKERS[name]
+    names = tuple(c[0] for c in cues)
+    fill, lower, upper = (np.array([c[i] for c in cues], float) for i in (1, 2, 3))
+    probe = Calibration(cues=names, mean=np.zeros(len(names)), scale=np.ones(len(names)),
+                        coef=np.zeros(len(names)), intercept=0.0, fill=fill, lower=lower, upper=upper,
+                        lost_below=0.5)
+    X = np.array([probe.vector(r) for r in rows])
+    y = ious > 0.5
+    mean, scale = X.mean(axis=0), X.std(axis=0)
+    scale = np.where(scale > 1e-9, scale, 1.0)
+    model = LogisticRegression(C=C, max_iter=1000).fit((X - mean) / scale, y)
+    coef, intercept = model.coef_[0], float(model.intercept_[0])
+    p = logistic_probability(X, mean, scale, coef, intercept)
+    if rule == "balance":
+        threshold = choose_threshold(p, ious)
+    else:   # the probability of a frame whose every cue takes its missing value, rounded up
+        unmeasured = float(logistic_probability(np.clip(fill, lower, upper), mean, scale, coef, intercept))
+        threshold = float(np.ceil(unmeasured * 1000.0 + 1e-9) / 1000.0)
+    return Calibration(cues=names, mean=mean, scale=scale, coef=coef, intercept=intercept, fill=fill,
+                       lower=lower, upper=upper, lost_below=threshold)
+
+
+def main(argv=None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("dataset")
+    parser.add_argument("--trackers", default="mil,nh,pf,bayes")
+    parser.add_argument("--sequences", default=TUNE)
+    parser.add_argument("--seeds", default="0")
+    parser.add_argument("--C", type=float, default=1.0, help="inverse L2 regularisation of the logistic fit")
+    parser.add_argument("--out", type=Path, default=OUT)
+    parser.add_argument("--cache", type=Path, help="keep (and reuse) each tracker's frames in this folder")
+    parser.add_argument("--table", action="store_true", help="print false lost and missed loss per threshold")
+    parser.add_argument("--passes", type=int, default=1,
+                        help="2: refit on the frames of the tracker run with the first pass's calibration "
+                             "(its status feeds back into its search)")
+    args = parser.parse_args(argv)
+    names = args.trackers.split(",")
+    unknown = [n for n in names if n not in TRACKERS]
+    if unknown:
+        parser.error(f"no calibration for {unknown[0]!r}; valid: {', '.join(TRACKERS)}")
+    sequences = load_dataset(args.dataset, args.sequences.split(","))
+    seeds = [int(s) for s in args.seeds.split(",")]
+    for name in names:
+        for run in range(args.passes):
+            cal, rows, ious = fit_pass(name, sequences, seeds, args, calibrated=run > 0)
+            args.out.mkdir(parents=True, exist_ok=True)
+            (args.out / f"{name}.json").write_text(json.dumps(document(name, cal, rows, ious, args, seeds, run + 1),
+                                                              indent=1) + "\n", encoding="utf-8")
+            load_calibration.cache_clear()
+    return 0
+
+
+def fit_pass(name, sequences, seeds, args, *, calibrated: bool):
+    """One pass: collect the frames (or read them from the cache), fit, print the tune figures."""
+    cache = None
+    if args.cache is not None:
+        cache = args.cache / f"{name}-{'-'.join(map(str, seeds))}{'-calibrated' if calibrated else ''}.json"
+    if cache is not None and cache.is_file():
+        saved = json.loads(cache.read_text(encoding="utf-8"))
+        rows, ious = saved["rows"], np.array(saved["ious"])
+    else:
+        rows, ious = collect(name, sequences, seeds, calibrated)
+        if cache is not None:
+            cache.parent.mkdir(parents=True, exist_ok=True)
+            cache.write_text(json.dumps({"rows": rows, "ious": ious.tolist()}), encoding="utf-8")
+    cal = fit(name, rows, ious, args.C)
+    p = np.array([cal.probability(r) for r in rows])
+    status = np.where(p < cal.lost_below, conf_metrics.LOST, conf_metrics.TRACKING)
+    m = conf_metrics.confidence_metrics(ious, p, status)
+    weights = ", ".join(f"{c} {w:+.2f}" for c, w in zip(cal.cues, cal.coef))
+    print(f"{name}{' (pass on the calibrated tracker)' if calibrated else ''}: {len(rows)} frames; {weights}; "
+          f"intercept {cal.intercept:+.2f}; lost below {cal.lost_below:.2f}")
+    print(f"  tune: ROC AUC {m['confidence_auc']:.3f}, ECE {m['ece']:.3f}, false lost {m['false_lost']:.3f}, "
+          f"missed loss {m['missed_loss']:.3f}, lost rate {m['lost_rate']:.3f}", flush=True)
+    if args.table:
+        for t, fl, ml, rate in threshold_table(p, ious):
+            print(f"    lost below {t:.2f}: false lost {fl:.3f}, missed loss {ml:.3f}, lost rate {rate:.3f}")
+    return cal, rows, ious
+
+
+def document(name: str, cal: Calibration, rows, ious, args, seeds, passes: int) -> dict:
+    """The JSON file's content: the calibration and what it was fitted on."""
+    data = cal.to_dict()
+    data["fitted_on"] = {"sequences": args.sequences, "seeds": seeds, "frames": len(rows), "passes": passes,
+                         "positive_rate": round(float(np.mean(ious > 0.5)), 4),
+                         "threshold_rule": THRESHOLD_RULES[TRACKERS[name][2]]}
+    return data
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

@@ -1,0 +1,93 @@
+"""The calibrated confidence: the logistic map, the packaged files, and the filters that use them."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from vidtrack.errors import UsageError
+from vidtrack.filters import mil as mil_filter
+from vidtrack.filters import score_trackers
+from vidtrack.filters.calibration import Calibration, load_calibration, logistic_probability
+from vidtrack.filters.mil import KalmanConfig, MILKalmanFilter
+from vidtrack.types import LOST, TRACKING, Box, Superpixels
+
+
+def _calibration(**changes) -> Calibration:
+    fields = dict(cues=("a", "b"), mean=np.array([1.0, 0.0]), scale=np.array([2.0, 1.0]),
+                  coef=np.array([1.5, -0.5]), intercept=0.25, fill=np.array([0.0, 3.0]),
+                  lower=np.array([-10.0, 0.0]), upper=np.array([10.0, 2.0]), lost_below=0.4)
+    fields.update(changes)
+    return Calibration(**fields)
+
+
+def test_probability_is_the_logistic_of_the_standardised_clipped_cues():
+    cal = _calibration()
+    z = 0.25 + 1.5 * (3.0 - 1.0) / 2.0 - 0.5 * 2.0      # b is clipped to its upper bound 2
+    assert cal.probability({"a": 3.0, "b": 5.0}) == pytest.approx(1.0 / (1.0 + np.exp(-z)))
+    # a missing or non-finite cue takes its fill value (b: 3, clipped to 2)
+    assert cal.probability({"a": 3.0}) == pytest.approx(cal.probability({"a": 3.0, "b": np.nan}))
+    assert cal.probability({"a": 3.0}) == pytest.approx(cal.probability({"a": 3.0, "b": 2.0}))
+    x = np.array([[3.0, 2.0], [0.0, 0.0]])
+    p = logistic_probability(x, cal.mean, cal.scale, cal.coef, cal.intercept)
+    assert p.shape == (2,) and p[0] == pytest.approx(cal.probability({"a": 3.0, "b": 2.0}))
+    assert Calibration.from_dict(cal.to_dict()).probability({"a": 0.5}) == pytest.approx(cal.probability({"a": 0.5}))
+
+
+def test_bad_calibration_files_are_usage_errors():
+    with pytest.raises(UsageError, match="no calibrated confidence"):
+        load_calibration("no-such-tracker")
+    with pytest.raises(UsageError, match="one value per cue"):
+        Calibration.from_dict({**_calibration().to_dict(), "coef": [1.0]})
+    with pytest.raises(UsageError, match="missing"):
+        Calibration.from_dict({"cues": ["a"]})
+
+
+MIL_GOOD = {"measured": 1.0, "quality": 0.9, "psr": 20.0, "svm_margin": 1.5, "inlier_coverage": 0.6,
+            "motion": 0.5, "scale_change": 0.0, "coast": 0.0, "present": 1.0}
+MAP_GOOD = {"measured": 1.0, "quality": 0.9, "psr": 20.0, "concentration": 0.8, "motion": 0.05,
+            "mass_quality": 0.72, "coast": 0.0}
+COASTING = {"measured": 0.0, "quality": 0.0, "psr": 2.0, "coast": 3.0}
+
+
+@pytest.mark.parametrize(("name", "cues", "good"), [("mil", mil_filter.CUES, MIL_GOOD),
+                                                    ("nh", score_trackers.CUES, MAP_GOOD),
+                                                    ("pf", score_trackers.CUES, MAP_GOOD),
+                                                    ("bayes", score_trackers.CUES, MAP_GOOD)])
+def test_packaged_calibrations_match_their_filters_cues(name, cues, good):
+    cal = load_calibration(name)
+    assert set(cal.cues) <= {c[0] for c in cues}
+    assert 0.0 < cal.lost_below < 1.0
+    # a typical well-measured frame is likely right and tracking; a long coast without a peak is lost
+    assert cal.probability(good) > 0.5 and cal.probability(good) >= cal.lost_below
+    assert cal.probability(COASTING) < cal.lost_below
+
+
+def _measurement(box: Box, quality: float, psr: float) -> Superpixels:
+    scores = np.array([1.0, 0.5, -1.0])
+    return Superpixels(labels=np.zeros((2, 2), np.int32), features=np.zeros((3, 1)), scores=scores,
+                       inliers=np.array([True, True, False]), box=box, quality=quality,
+                       stages={"psr": psr, "inlier_coverage": 0.6})
+
+
+def test_mil_filter_reports_the_calibrated_probability_and_lost_below_its_threshold():
+    box = Box(100, 100, 40, 60)
+    kf = MILKalmanFilter(KalmanConfig(confidence="mil"))
+    kf.initialize(box)
+    cal = load_calibration("mil")
+    kf.predict()
+    good = kf.update(_measurement(box, 0.9, 20.0))
+    assert good.status == TRACKING and good.scalars["measured"] == 1.0
+    assert good.confidence == pytest.approx(cal.probability(good.scalars))
+    assert good.confidence >= cal.lost_below and good.scalars["svm_margin"] == pytest.approx(0.75)
+    for _ in range(5):   # nothing measured: the probability falls below the threshold
+        kf.predict()
+        coast = kf.update(None)
+    assert coast.scalars["measured"] == 0.0 and coast.scalars["coast"] == pytest.approx(np.log(6.0))
+    assert coast.status == LOST and coast.confidence < cal.lost_below < good.confidence
+    raw = MILKalmanFilter(KalmanConfig(confidence=None))   # uncalibrated: the quality, lost when not measured
+    raw.initialize(box)
+    raw.predict()
+    assert raw.update(_measurement(box, 0.9, 20.0)).confidence == pytest.approx(0.9)
+    raw.predict()
+    assert raw.update(None).status == LOST
