@@ -35,8 +35,8 @@ neighbour association on the trackers' own outputs (no detector is needed):
    (the measurer's own appearance score) wins.
 3. **Appearance held while crowded.**  A target whose box overlaps another
    target's box, or whose measurement was dropped, has its measurer's
-   ``learn`` called with the posterior marked ``lost`` (confidence 0): every
-   vidtrack measurer learns nothing from a lost posterior (``mil``'s SVM and
+   ``learn`` called with the posterior marked ``lost``, unmeasured and of
+   quality 0 (confidence 0): every vidtrack measurer learns nothing from it (``mil``'s SVM and
    correlation filter, mean-shift's size, the score-map templates) but keeps
    its own bookkeeping (``mil`` knows it is coasting), so no appearance model
    learns the other object's pixels.  Measurers that learn inside
@@ -302,7 +302,8 @@ class MultiTargetTracker:
         self.held_ = set()
         if self.config.aware and self.config.hold_learning:
             self.held_ = overlapping_targets({i: p.box for i, p in posteriors.items()}) | set(self.dropped_)
-        teach = {i: replace(p, status=LOST, confidence=0.0) if i in self.held_ else p for i, p in posteriors.items()}
+        teach = {i: replace(p, status=LOST, confidence=0.0, scalars={**p.scalars, "measured": 0.0, "quality": 0.0})
+                 if i in self.held_ else p for i, p in posteriors.items()}
         self._map(lambda i: self.trackers[i].measurer.learn(frame, teach[i]), self.ids)
         states = {}
         for i in self.ids:
