@@ -17,6 +17,7 @@ import sys
 import time
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 sys.path.insert(0, str(Path(__file__).parent))
@@ -131,3 +132,19 @@ def test_a_lost_workers_job_is_run_again_on_another_worker(tmp_path, cluster):
     gone, alive = psutil.wait_procs([job], timeout=10)                # the lost worker's job died with it
     assert not alive, job
     assert not list(out.rglob("*.part"))
+
+
+def test_a_job_whose_every_worker_was_lost_is_failed_for_its_sequence_only(tmp_path):
+    from types import SimpleNamespace
+
+    from distributed.scheduler import KilledWorker
+
+    from vidtrack.eval.jobs import Job
+    from vidtrack.eval.running import _failed
+    from vidtrack.eval.sequence import BenchmarkSequence
+    from vidtrack.eval.worker import died
+
+    sequence = BenchmarkSequence("Beta", tmp_path, (), np.zeros((0, 4)), 1, "otb", (0, 0))
+    output = _failed(Job("kalman-cv", sequence), KilledWorker("run_fresh-1", SimpleNamespace(address="tcp://x"), 3))
+    assert (output.filter_name, output.sequence_name, output.status) == ("kalman-cv", "Beta", "failed")
+    assert output.error == "worker process died (on the 4 Dask workers that ran it)" and died(output)
