@@ -145,3 +145,40 @@ def test_a_read_only_output_folder_is_one_line_and_exit_2(tmp_path, read_only_fo
         assert lines[0].endswith(("Read-only file system", "Permission denied")), (case, stderr)
     assert not list(read_only_folder.iterdir())
     assert not (tmp_path / "results").exists() or not list((tmp_path / "results").rglob("*.txt"))
+
+
+@pytest.fixture
+def small_disk(tmp_path):
+    """A 256 KB tmpfs folder with a space in its name (mounted for the test: needs root)."""
+    if os.geteuid() != 0 or shutil.which("mount") is None:
+        pytest.skip("mounting a small tmpfs needs root and mount(8)")
+    folder = tmp_path / "petit disque"
+    folder.mkdir()
+    mounted = subprocess.run(["mount", "-t", "tmpfs", "-o", "size=256k", "tmpfs", str(folder)],
+                             capture_output=True, text=True)
+    if mounted.returncode != 0:
+        pytest.skip(f"cannot mount a tmpfs here: {mounted.stderr.strip()}")
+    try:
+        yield folder
+    finally:
+        subprocess.run(["umount", "-l", str(folder)], check=False)
+
+
+def test_a_full_disk_under_the_recording_is_one_line_exit_1_and_keeps_every_complete_batch(tmp_path, small_disk):
+    import re
+
+    from rerun_reader import read_recording
+
+    source = write_frames(tmp_path / "img", 2000)
+    recording, boxes = small_disk / "r é.rrd", tmp_path / "b.txt"
+    process = _start(_track_args(source) + ["--flush-every", "10", "--rerun", str(recording), "--boxes", str(boxes)],
+                     tmp_path)
+    code, stderr = _finish(process)
+    assert code == 1, stderr
+    lines = stderr.strip().splitlines()
+    assert len(lines) == 1 and "Traceback" not in stderr, stderr
+    assert lines[0].startswith(f"vidtrack: error: cannot write {recording}: No space left on device"), stderr
+    written = int(re.search(r"keep the (\d+) frames", lines[0]).group(1))
+    assert 0 < written < 2000 and written <= len(read_boxes(boxes)) <= written + 1   # the failing frame too
+    frames = read_recording(recording)["video/frame"]         # readable: cut back to its last complete batch
+    assert frames == list(range(len(frames))) and len(frames) % 10 == 0 and written - 10 < len(frames) <= written
