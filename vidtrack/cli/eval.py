@@ -92,8 +92,9 @@ def main(argv: list[str]) -> int:
     from ..eval.evaluation import run_evaluation
     from ..eval.html_report import write_report
     from ..eval.plots import attribute_plot, write_plots
-    from ..eval.toolkit import write_toolkit_results
     from ..eval.report import format_attribute_table, format_confidence_table, format_table, write_summary
+    from ..eval.results import check_writable_folder
+    from ..eval.toolkit import write_toolkit_results
     from ..recipes import registry
 
     args = build_parser().parse_args(argv)
@@ -134,6 +135,9 @@ def main(argv: list[str]) -> int:
         for reason in reading.errors.values():
             print(f"vidtrack eval: skipped: {reason}", file=sys.stderr)
     sequences = reading.sequences
+    check_writable_folder(args.out)          # created if missing; unwritable is bad input, found now
+    if args.rerun and not args.scheduler:    # (on a cluster the workers write the recordings)
+        check_writable_folder(args.rerun)
     attributes = _attributes(args.attributes, args.dataset)
 
     def report(output) -> None:

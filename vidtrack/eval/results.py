@@ -65,6 +65,33 @@ def write_atomic(path: Path, text: str) -> None:
         raise failed_write(path, exc) from None
 
 
+def check_writable_folder(path: str | Path) -> Path:
+    """Create the folder ``path`` (and its missing parents) and check that a file can be written in it.
+
+    An evaluation checks its output folders before the first job runs, so
+    an unwritable one is bad input found at the start, not a failure after
+    the first sequence.
+
+    Raises
+    ------
+    OutputError
+        When the folder cannot be created or written (read-only, a file of that name, no permission).
+    """
+    from ..errors import OutputError
+
+    path = Path(path)
+    if path.exists() and not path.is_dir():
+        raise OutputError(f"cannot write {path}: it is not a folder")
+    probe = path / f".vidtrack-write-check.{os.getpid()}.{threading.get_ident()}"
+    try:
+        path.mkdir(parents=True, exist_ok=True)
+        probe.write_bytes(b"")
+        probe.unlink()
+    except OSError as exc:
+        raise OutputError(f"cannot write {path}: {exc.strerror or exc}") from None
+    return path
+
+
 def write_result(out: str | Path, filter_name: str, sequence_name: str, lines: list[str], record: dict[str, Any],
                  confidence: str | None = None) -> None:
     """Write a finished run's result file, its confidence file, then its record (the record marks it complete)."""

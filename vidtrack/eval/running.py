@@ -79,6 +79,12 @@ def execute(jobs: list[Job], *, workers: int = 1, scheduler: str | None = None,
 
 
 def _failed(job: Job, exc: BaseException) -> JobOutput:
+    from .worker import DIED
+
+    if type(exc).__name__ == "KilledWorker":   # Dask gave up: every worker that took the job was lost
+        tries = getattr(exc, "allowed_failures", None)
+        where = "on every Dask worker that ran it" if tries is None else f"on the {tries + 1} Dask workers that ran it"
+        return JobOutput(job.filter_name, job.sequence.name, "failed", error=f"{DIED} ({where})")
     return JobOutput(job.filter_name, job.sequence.name, "failed", error=f"{type(exc).__name__}: {exc}")
 
 
@@ -105,6 +111,15 @@ def _execute_threads(jobs: list[Job], workers: int, runner) -> Iterator[JobOutpu
 
 
 def _execute_dask(jobs: list[Job], scheduler: str, runner) -> Iterator[JobOutput]:
+    """Run ``jobs`` on the Dask cluster at ``scheduler``, yielding their outputs as they finish.
+
+    A worker lost in the middle of a job (killed, out of memory, its machine
+    gone) costs only that attempt: the scheduler gives the job to another
+    worker (``distributed.scheduler.allowed-failures`` times, 3 by default),
+    and a job whose every worker was lost is yielded as ``failed``
+    (:data:`~vidtrack.eval.worker.DIED`); every other job's output is
+    yielded as usual.
+    """
     try:
         from dask.distributed import Client, as_completed
     except ImportError:

@@ -16,6 +16,9 @@ that crashes the interpreter (a segfault in native code) to its own job.
 * :func:`run_fresh` picks one of the two, and runs a job whose process
   died (the OOM killer, a segfault) once more before reporting it failed.
 
+A job's process ends when the process that started it is gone
+(:func:`die_with`), so no job outlives a lost Dask worker.
+
 When the caller stops (Ctrl-C, SIGTERM: a KeyboardInterrupt in the thread
 waiting for a job) the job's process is ended with it; :func:`stop_workers`
 ends every job process still running, whichever thread waits for it, so an
@@ -29,10 +32,12 @@ from __future__ import annotations
 
 import os
 import pickle
+import select
 import subprocess
 import sys
 import tempfile
 import threading
+import time
 from pathlib import Path
 
 from .jobs import Job, JobOutput, run_job
@@ -58,7 +63,44 @@ def _fork_context():
     return _CONTEXT
 
 
-def _forked_child(job: Job, connection) -> None:
+#: Environment variable naming the PID of the process that started a child-interpreter job (see :func:`main`).
+OWNER_VARIABLE = "VIDTRACK_JOB_OWNER"
+
+
+def die_with(owner: int) -> None:
+    """End this job process as soon as the process ``owner`` (the one waiting for its answer) is gone.
+
+    A job's process must not outlive the process that runs it: a lost Dask
+    worker's job is run again elsewhere, and an orphan would go on computing
+    (and writing the same ``--rerun`` recording as the new run).  A daemon
+    thread waits for ``owner`` to exit (a pidfd on Linux, else a check every
+    second) and then ends this process at once.
+    """
+    def watch() -> None:
+        try:
+            handle = os.pidfd_open(owner)
+        except (AttributeError, OSError):
+            handle = None
+        if handle is not None:
+            select.select([handle], [], [])      # readable once the owner has exited
+        else:
+            while True:
+                try:
+                    os.kill(owner, 0)
+                except ProcessLookupError:
+                    break
+                except PermissionError:
+                    pass
+                time.sleep(1.0)
+        os._exit(1)
+
+    if owner == os.getpid():
+        return
+    threading.Thread(target=watch, name="owner watch", daemon=True).start()
+
+
+def _forked_child(job: Job, connection, owner: int) -> None:
+    die_with(owner)   # the process that forked the job through the fork server, not the fork server
     try:
         output = run_job(job)
     except KeyboardInterrupt:
@@ -144,7 +186,7 @@ def run_forked(job: Job) -> JobOutput:
 
     context = _fork_context()
     receiver, sender = context.Pipe(duplex=False)
-    process = context.Process(target=_forked_child, args=(job, sender), daemon=True)
+    process = context.Process(target=_forked_child, args=(job, sender, os.getpid()), daemon=True)
     try:
         with uninterrupted():        # a signal waits till the child has its whole job
             process.start()
@@ -178,7 +220,8 @@ def run_isolated(job: Job) -> JobOutput:
         job_path.write_bytes(pickle.dumps(job))
         with uninterrupted():
             process = subprocess.Popen([sys.executable, "-m", "vidtrack.eval.worker", str(job_path),
-                                        str(out_path)], stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL)
+                                        str(out_path)], stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL,
+                                       env={**os.environ, OWNER_VARIABLE: str(os.getpid())})
             _track(process)
         try:
             process.wait()
@@ -194,6 +237,9 @@ def run_isolated(job: Job) -> JobOutput:
 
 def main(argv: list[str]) -> int:
     """``python -m vidtrack.eval.worker JOB.pkl OUT.pkl``: run the pickled job, pickle its output (exit 0)."""
+    owner = os.environ.get(OWNER_VARIABLE, "")
+    if owner.isdigit():
+        die_with(int(owner))
     job = pickle.loads(Path(argv[0]).read_bytes())
     try:
         output = run_job(job)

@@ -58,6 +58,7 @@ from ..errors import OutputError, UsageError
 from ..types import Box, Frame, TrackState
 from .base import open_text_output
 from .palette import target_colour_rgb
+from .relayed_file import RelayedFile, relay_supported
 from .stage_images import (COLORMAPS, display_image, encode_jpeg, labels_for_segmentation, point_display,
                            region_transform, stage_kind)
 
@@ -198,13 +199,21 @@ class RerunSink:
         self._rows: dict[str, tuple[str, list[tuple[int, Any]]]] = {}
         self._buffered = 0
         self._rec: rr.RecordingStream | None = None
+        self._relay: RelayedFile | None = None   # the .rrd file, written through a pipe (see _open)
         self._open()
 
     # -- setup and teardown
 
     def _open(self) -> None:
+        target = self.path
         if self.path is not None:
             open_text_output(self.path).close()   # fail now, with a clear message, if the path is not writable
+            if relay_supported():   # rerun writes a pipe, copied here: a full disk is seen, never a hang
+                try:
+                    self._relay = RelayedFile(self.path)
+                except OSError as exc:
+                    raise OutputError(f"cannot write {self.path}: {exc.strerror or exc}") from None
+                target = self._relay.inlet
         rec = rr.RecordingStream(self.application_id, recording_id=uuid.uuid4())
         rec.set_log_time_enabled(False)  # one timeline: frame
         rec.set_log_tick_enabled(False)
@@ -213,12 +222,15 @@ class RerunSink:
             if self.spawn:
                 rec.spawn(connect=False, hide_welcome_screen=True)
                 if self.path is not None:
-                    rec.set_sinks(rr.GrpcSink(), rr.FileSink(self.path), default_blueprint=blueprint)
+                    rec.set_sinks(rr.GrpcSink(), rr.FileSink(target), default_blueprint=blueprint)
                 else:
                     rec.connect_grpc(default_blueprint=blueprint)
             else:
-                rec.save(self.path, default_blueprint=blueprint)
+                rec.save(target, default_blueprint=blueprint)
         except Exception as exc:  # rerun raises plain RuntimeError/ValueError
+            if self._relay is not None:
+                self._relay.close()
+                self._relay = None
             target = "a Rerun viewer" if self.path is None else str(self.path)
             raise OutputError(f"cannot write {target}: {str(exc).splitlines()[0] if str(exc) else exc}") from None
         rec.send_recording_name(f"vidtrack {self.filter_name}")
@@ -239,6 +251,9 @@ class RerunSink:
         finally:
             self._rec = None
             rec.disconnect()  # drops the file sink, which writes the RRD footer
+            if self._relay is not None:   # a failed write cuts the file back to its last complete batch
+                relay, self._relay = self._relay, None
+                relay.close()
 
     def __enter__(self) -> "RerunSink":
         return self
@@ -356,6 +371,8 @@ class RerunSink:
             self._send_buffered()
             if self.path is not None:
                 self._rec.flush()  # the batch is in the file: a hard stop (kill -9) keeps it
+                if self._relay is not None:
+                    self._relay.sync()   # a full disk: WriteFailed
 
     def _write_target(self, frame: Frame, target: int, state: TrackState, shown: set[str], *, several: bool) -> None:
         """Queue one target's boxes, stages and scalars under ``targets/<id>/``."""
