@@ -18,6 +18,7 @@ import time
 import warnings
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 sys.path.insert(0, str(Path(__file__).parent))
@@ -558,3 +559,18 @@ def test_a_cbt_grid_over_its_memory_budget_is_refused_in_one_line(tmp_path):
     assert done.returncode == 2 and not (tmp_path / "b.txt").exists()
     assert re.fullmatch(r"vidtrack: error: cbt: a position grid of \d+x\d+ channels of order 3 needs \d+ MB, over "
                         r"the 512 MB budget; raise spacing_boxes or lower window_boxes or order\n", done.stderr)
+
+
+def test_opencv_tld_over_its_memory_budget_is_refused_in_one_line(tmp_path):
+    import cv2
+
+    folder = tmp_path / "4k"
+    folder.mkdir()
+    cv2.imwrite(str(folder / "0000.png"), np.full((2160, 3840, 3), 80, np.uint8))
+    done = subprocess.run([sys.executable, "-m", "vidtrack", str(folder), "--init-box", "1900,1000,10,10",
+                           "--filter", "opencv-tld", "-q", "--boxes", str(tmp_path / "b.txt")],
+                          cwd=tmp_path, capture_output=True, text=True, timeout=120)
+    assert done.returncode == 2 and not (tmp_path / "b.txt").exists()
+    assert re.fullmatch(r"vidtrack: error: opencv-tld scans the whole frame: a 10x10 box on a 3840x2160 frame needs "
+                        r"about \d+ MB, over its 512 MB budget; use a larger box or a downscaled video\n",
+                        done.stderr), done.stderr
