@@ -1,105 +1,196 @@
 #!/usr/bin/env python3
-"""Peak memory of a tracking run against its length: vidtrack streams, so it should stay flat.
+"""Peak memory and time per frame of every tracker on large frames, small boxes and long streams.
 
-Runs ``vidtrack VIDEO --init-box BOX --filter NAME --max-frames N`` in a fresh
-process for each filter and each N and prints the process's peak resident set
-size (``ru_maxrss``), with the ratio of the longest run's peak to the shortest's.
-Without ``VIDEO`` it generates a long synthetic clip first (a textured square
-moving on a circle over a gradient, H.264), so a 10,000-frame stream needs no
-download.
+Each tracker runs in a fresh process through the real run loop
+(:func:`vidtrack.run.run_tracker`, with a ``--boxes`` sink) on frames
+generated on the fly: a textured target the size of the box moving on an
+ellipse (1.5 box sizes wide, one high, one turn every 120 frames) over a
+smooth textured background, so no video has to be stored.  The cases:
+
+=========  ===========  =========  ===============================================
+case       frame        box        what it checks
+=========  ===========  =========  ===============================================
+``vga``    640x480      40x40      the reference for the time per frame
+``4k``     3840x2160    40x40      time per frame within 1.5x of ``vga``'s
+``small``  1280x720     10x10      a small box on a large frame (frame/box ratio)
+``long``   160x120      24x24      ``--long-frames`` frames (default 100,000):
+                                   peak RSS at the end within 10 % of that after
+                                   1,000 frames
+=========  ===========  =========  ===============================================
+
+and every case's peak resident set size (``ru_maxrss``) under 1 GB.  The
+time per frame is the tracker's alone (generating the frame and writing the
+boxes excluded), the median over the frames (the machine may be shared: the
+median ignores the frames another process slowed down).  A tracker that refuses a case (a documented memory budget,
+exit 2 on the command line) is listed with its one-line reason.
 
 Usage::
 
-    python scripts/bench_memory.py --filter mil,nh,cbt,svk,kalman-cv,opencv-kcf --frames 1000,10000
-    python scripts/bench_memory.py ../shared/data/sequences/Sylvester/img --init-box 122,51,51,61 \
-        --filter kalman-cv --frames 100,1344
+    nice -n 10 python scripts/bench_memory.py                         # every tracker, every case
+    python scripts/bench_memory.py --filter cbt,nh --cases vga,4k,small --frames 100
+    python scripts/bench_memory.py --filter kalman-cv --cases long --long-frames 5000
 """
 
 from __future__ import annotations
 
 import argparse
+import json
+import resource
 import subprocess
 import sys
 import tempfile
-from pathlib import Path
+import time
 
 import numpy as np
 
-CHILD = """
-import resource, sys
-from vidtrack.cli import main
-code = main(sys.argv[1:])
-print(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss)
-sys.exit(code)
-"""
-
-WIDTH, HEIGHT, SIDE = 160, 120, 24
+#: name -> (width, height, box side)
+CASES = {"vga": (640, 480, 40), "4k": (3840, 2160, 40), "small": (1280, 720, 10), "long": (160, 120, 24)}
+CHECKPOINT = 1000
+RSS_LIMIT_MB = 1024.0
+GROWTH_LIMIT = 1.10
+SLOWDOWN_LIMIT = 1.5
 
 
-def square_position(index: int) -> tuple[int, int]:
-    """Top-left corner of the square in frame ``index`` (one turn every 300 frames)."""
-    angle = index * 2 * np.pi / 300
-    return (int(round((WIDTH - SIDE) / 2 + 40 * np.cos(angle))),
-            int(round((HEIGHT - SIDE) / 2 + 30 * np.sin(angle))))
+class SyntheticStream:
+    """Frames ``(H, W, 3) uint8`` with a textured ``side x side`` target moving on an ellipse.
+
+    The background is smooth noise (low-resolution noise resized up) over a
+    horizontal gradient; the target a fixed finer texture in other colours.
+    ``box(index)`` is the target's true box ``(x, y, w, h)``.
+    """
+
+    def __init__(self, width: int, height: int, side: int, frames: int, *, seed: int = 0) -> None:
+        import cv2
+
+        rng = np.random.default_rng(seed)
+        self.width, self.height, self.side, self.frames = width, height, side, frames
+        coarse = rng.integers(0, 256, (max(2, height // 24), max(2, width // 24), 3), dtype=np.uint8)
+        smooth = cv2.resize(coarse, (width, height), interpolation=cv2.INTER_CUBIC).astype(np.int16)
+        ramp = np.linspace(-30, 30, width).astype(np.int16)[None, :, None]
+        self.background = np.clip(smooth // 2 + 64 + ramp, 0, 255).astype(np.uint8)
+        cells = max(2, side // 3)
+        pattern = rng.integers(0, 256, (cells, cells, 3), dtype=np.uint8)
+        pattern[..., 2] = 255 - pattern[..., 0]
+        self.patch = cv2.resize(pattern, (side, side), interpolation=cv2.INTER_NEAREST)
+
+    def box(self, index: int) -> tuple[int, int, int, int]:
+        angle = index * 2 * np.pi / 120
+        cx = self.width / 2 + 1.5 * self.side * np.cos(angle)
+        cy = self.height / 2 + 1.0 * self.side * np.sin(angle)
+        return int(round(cx - self.side / 2)), int(round(cy - self.side / 2)), self.side, self.side
+
+    def __iter__(self):
+        from vidtrack.types import Frame
+
+        for index in range(self.frames):
+            image = self.background.copy()
+            x, y, w, h = self.box(index)
+            image[y:y + h, x:x + w] = self.patch
+            yield Frame(index, image)
 
 
-def make_video(path: Path, frames: int) -> str:
-    """Write the synthetic clip; returns its init box ``x,y,w,h``."""
-    from vidtrack.sinks.h264 import H264Writer
+def child(name: str, case: str, frames: int, boxes: str) -> dict:
+    """Run ``name`` on ``case`` in this process; the peak RSS at the checkpoint and at the end, ms per frame."""
+    from vidtrack.errors import VidtrackError
+    from vidtrack.recipes import build_tracker
+    from vidtrack.run import run_tracker
+    from vidtrack.sinks.files import BoxesSink
+    from vidtrack.types import Box
 
-    background = np.empty((HEIGHT, WIDTH, 3), np.uint8)
-    background[:] = np.linspace(40, 140, WIDTH, dtype=np.uint8)[None, :, None]
-    patch = (np.indices((SIDE, SIDE)).sum(axis=0) % 6 * 35 + 40).astype(np.uint8)
-    patch = np.stack([patch, 255 - patch, np.full_like(patch, 200)], axis=-1)
-    writer = H264Writer(path, fps=30.0, batch=60)
+    width, height, side = CASES[case]
+    stream = SyntheticStream(width, height, side, frames)
+    at_checkpoint: list[float] = []
+
+    def on_state(state) -> None:
+        if state.index + 1 == min(CHECKPOINT, frames):
+            at_checkpoint.append(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024)
+
+    times: list[float] = []
     try:
-        for index in range(frames):
-            image = background.copy()
-            x, y = square_position(index)
-            image[y:y + SIDE, x:x + SIDE] = patch
-            writer.write(image)
-    finally:
-        writer.close()
-    x, y = square_position(0)
-    return f"{x},{y},{SIDE},{SIDE}"
+        tracker = build_tracker(name, seed=0)
+        step = tracker.step
+
+        def timed_step(frame):
+            start = time.perf_counter()
+            state = step(frame)
+            times.append(time.perf_counter() - start)
+            return state
+
+        tracker.step = timed_step
+        result = run_tracker(tracker, stream, Box(*map(float, stream.box(0))), [BoxesSink(boxes)],
+                             on_state=on_state)
+    except VidtrackError as exc:
+        return {"refused": str(exc)}
+    end = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
+    return {"frames": result.frames, "rss_checkpoint": at_checkpoint[0] if at_checkpoint else end,
+            "rss_end": end, "ms": 1000 * float(np.median(times)) if times else float("nan"),
+            "lost": result.lost_frames}
 
 
-def peak_rss_mb(video: str, box: str, name: str, frames: int, tmp: str) -> float:
-    result = subprocess.run([sys.executable, "-c", CHILD, video, "--init-box", box, "--filter", name,
-                             "--max-frames", str(frames), "--quiet", "--boxes", f"{tmp}/b.txt"],
-                            capture_output=True, text=True)
-    if result.returncode != 0:
-        raise SystemExit(f"{name}: {result.stderr.strip().splitlines()[-1] if result.stderr.strip() else result.returncode}")
-    tracked = sum(1 for _ in open(f"{tmp}/b.txt"))
-    if tracked != frames:
-        raise SystemExit(f"{name}: tracked {tracked} frames, not {frames} (video too short?)")
-    return int(result.stdout.split()[-1]) / 1024
+def measure(name: str, case: str, frames: int, tmp: str) -> dict:
+    """:func:`child` in a fresh process (its peak RSS is this run's alone)."""
+    proc = subprocess.run([sys.executable, __file__, "--child", name, case, str(frames), f"{tmp}/boxes.txt"],
+                          capture_output=True, text=True)
+    if proc.returncode != 0:
+        lines = proc.stderr.strip().splitlines()
+        return {"failed": lines[-1] if lines else f"exit {proc.returncode}"}
+    return json.loads(proc.stdout.strip().splitlines()[-1])
 
 
-def main() -> int:
+def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("video", nargs="?", help="video or frame folder (default: a generated clip)")
-    parser.add_argument("--init-box", help="needed with VIDEO")
-    parser.add_argument("--filter", default="kalman-cv", help="comma-separated filter names")
-    parser.add_argument("--frames", default="1000,10000", help="comma-separated run lengths")
-    args = parser.parse_args()
-    lengths = [int(v) for v in args.frames.split(",")]
-    names = [n for n in args.filter.split(",") if n]
+    parser.add_argument("--filter", default="all", help="comma-separated tracker names (default: every registered one)")
+    parser.add_argument("--cases", default="vga,4k,small,long", help=f"comma-separated cases of {', '.join(CASES)}")
+    parser.add_argument("--frames", type=int, default=200, help="frames of the vga, 4k and small cases (default 200)")
+    parser.add_argument("--long-frames", type=int, default=100_000,
+                        help="frames of the long case (default 100000; RSS also read after 1000)")
+    parser.add_argument("--child", nargs=4, help=argparse.SUPPRESS)
+    args = parser.parse_args(argv)
+    if args.child:
+        name, case, frames, boxes = args.child
+        print(json.dumps(child(name, case, int(frames), boxes)))
+        return 0
+    from vidtrack.api import filters
+
+    names = list(filters()) if args.filter == "all" else [n for n in args.filter.split(",") if n]
+    cases = [c for c in args.cases.split(",") if c]
+    unknown = [c for c in cases if c not in CASES]
+    if unknown:
+        parser.error(f"unknown case {unknown[0]!r}; valid: {', '.join(CASES)}")
+    print(f"frames per case: {args.frames} (long: {args.long_frames}); peak RSS in MB, tracker ms per frame (median)")
+    cols = []
+    for case in cases:
+        cols += [f"{case} MB", f"{case} ms"] if case != "long" else ["long MB @1000", "long MB end"]
+    print("| tracker | " + " | ".join(cols) + " | 4k/vga ms | checks |")
+    print("|---|" + "---:|" * (len(cols) + 1) + "---|")
+    failures = 0
     with tempfile.TemporaryDirectory() as tmp:
-        video, box = args.video, args.init_box
-        if video is None:
-            video = f"{tmp}/synthetic.mp4"
-            box = make_video(Path(video), max(lengths))
-        elif box is None:
-            parser.error("--init-box is needed with VIDEO")
-        header = " | ".join(f"peak RSS at {n} frames (MB)" for n in lengths)
-        print(f"| filter | {header} | ratio last/first |")
-        print("|---|" + "---:|" * (len(lengths) + 1))
         for name in names:
-            peaks = [peak_rss_mb(video, box, name, n, tmp) for n in lengths]
-            cells = " | ".join(f"{p:.1f}" for p in peaks)
-            print(f"| {name} | {cells} | {peaks[-1] / peaks[0]:.3f} |", flush=True)
-    return 0
+            got = {c: measure(name, c, args.long_frames if c == "long" else args.frames, tmp) for c in cases}
+            cells, problems = [], []
+            for case in cases:
+                r = got[case]
+                if "refused" in r or "failed" in r:
+                    cells += ["refused" if "refused" in r else "failed", "-"]
+                    problems.append(f"{case}: {r.get('refused') or r.get('failed')}")
+                    continue
+                if case == "long":
+                    cells += [f"{r['rss_checkpoint']:.0f}", f"{r['rss_end']:.0f}"]
+                    if r["rss_end"] > GROWTH_LIMIT * r["rss_checkpoint"]:
+                        problems.append("long: RSS grew > 10 %")
+                else:
+                    cells += [f"{r['rss_end']:.0f}", f"{r['ms']:.1f}"]
+                if r["rss_end"] > RSS_LIMIT_MB:
+                    problems.append(f"{case}: RSS > 1 GB")
+            ratio = "-"
+            if all(c in got and "ms" in got[c] for c in ("vga", "4k")):
+                slow = got["4k"]["ms"] / got["vga"]["ms"]
+                ratio = f"{slow:.2f}"
+                if slow > SLOWDOWN_LIMIT:
+                    problems.append("4k > 1.5x vga")
+            failures += bool(problems)
+            print(f"| {name} | " + " | ".join(cells) + f" | {ratio} | {'; '.join(problems) or 'ok'} |", flush=True)
+    return 1 if failures else 0
 
 
 if __name__ == "__main__":

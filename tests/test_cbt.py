@@ -1,5 +1,6 @@
 """Channel-Based Tracking: learning (eq. 11, Baum-Welch, correspondence-free), EKF/PDAF comparators,
-the two reproductions (small), the video filter, `vidtrack learn cbt` and `--model` errors."""
+the two reproductions (small), the video filter (its grid bounded by the box), `vidtrack learn cbt` and
+`--model` errors."""
 
 from __future__ import annotations
 
@@ -11,9 +12,9 @@ import numpy as np
 import pytest
 
 from vidtrack.errors import UsageError
-from vidtrack.channels import (ChannelBasis, decode, decode_modes, embedded_predict, encode,
-                               random_walk_displacement)
-from vidtrack.filters.cbt import CBTFilter
+from vidtrack.channels import (ChannelBasis, decode, decode_modes, embedded_predict, encode, position_conditional,
+                               random_walk_displacement, shift_tensor)
+from vidtrack.filters.cbt import CBTFilter, grid_megabytes
 from vidtrack.filters.cbt_model import CBTModel
 from vidtrack.filters.channels import ChannelBayesFilter
 from vidtrack.filters.ekf import ExtendedKalmanFilter
@@ -323,3 +324,51 @@ def test_detections_reproduction_small():
     assert r["CBT"]["inf"] < r["Detector"]["inf"]
     assert r["CBT"]["5"] <= r["CBT"]["20"] <= r["CBT"]["inf"]
     assert "Detector" in cbt_detections.format_table(result)
+
+
+def test_shift_tensor_moves_every_axis_and_drops_what_leaves():
+    W = np.zeros((6, 6))
+    W[3, 2] = 1.0
+    W[0, 0] = 0.5
+    moved = shift_tensor(W, 2)   # the grid's origin moved up 2 channels
+    assert moved[1, 0] == 1.0 and moved.sum() == 1.0   # the mass at channel 0 left the grid
+    assert shift_tensor(moved, -2)[3, 2] == 1.0
+    assert shift_tensor(W, 0) is W and not shift_tensor(W, 6).any()
+
+
+def test_position_conditional_is_translation_invariant_on_any_window():
+    d_basis = ChannelBasis(-0.6, 0.6, 15)
+    D = random_walk_displacement(d_basis, 0.12, 2)
+    at_origin = position_conditional(D, d_basis, ChannelBasis(0.0, 40.0, 23), 10.0)
+    elsewhere = position_conditional(D, d_basis, ChannelBasis(600.0, 640.0, 23), 10.0)
+    np.testing.assert_array_equal(at_origin, elsewhere)   # moving the window by whole channels keeps G
+
+
+def test_cbt_grid_follows_a_small_box_across_a_large_frame():
+    # a 10x10 box on 1280x720 (frame/box ratio 128): the grid is a window of the box, not the frame,
+    # and it follows the target over 3 window widths
+    frames, boxes = synthetic_sequence(n=120, size=(1280, 720), box=(100, 300, 10, 10), velocity=(2.5, 0.5))
+    tracker = build_tracker("cbt", seed=0)
+    tracker.initialize(frames[0], boxes[0])
+    inner = tracker.filter.inner
+    assert [b.n for b in inner.bases_] == [53, 53]   # 100 px window / 2 px spacing + 3
+    assert all(G.nbytes < 2 ** 21 for G in inner.G_)
+    errors = [np.linalg.norm(tracker.step(frame).box.center - box.center) for frame, box in zip(frames[1:], boxes[1:])]
+    assert max(errors) < 7.5   # never more than three quarters of the box off
+    assert inner.bases_[0].lo > 300.0   # the window moved with the target
+
+
+def test_cbt_grid_covers_a_frame_smaller_than_its_window_as_a_whole():
+    frames, boxes = synthetic_sequence(n=3, size=(160, 120), box=(20, 40, 24, 28))
+    f = CBTFilter()
+    f.initialize(boxes[0], frames[0])
+    whole = [ChannelBasis.with_spacing(0.0, 160.0, f.spacing_), ChannelBasis.with_spacing(0.0, 120.0, f.spacing_)]
+    assert list(f.bases_) == whole and f.origin_ == [0, 0]
+
+
+def test_cbt_over_its_memory_budget_is_refused_before_tracking(moving_target):
+    frames, boxes = moving_target
+    f = CBTFilter(spacing_boxes=0.01, min_spacing=0.1, window_boxes=40.0, order=3)
+    with pytest.raises(UsageError, match=r"needs \d+ MB, over the 512 MB budget"):
+        f.initialize(boxes[0], frames[0])
+    assert grid_megabytes(53, 2) < 5.0   # the default grid of any box: 53 channels, order 2

@@ -261,3 +261,24 @@ def test_make_detector_configures_the_score_map_detector():
     img, patch = scene(rng, box.center, box.size)
     detector.initialize(Frame(0, img), box)
     assert detector.filter_.scale_ is None     # the scale_filter setting reached the filter
+
+
+def test_mil_whole_frame_search_is_bounded_by_the_box():
+    """mil's re-detection region: the frame when it is within ``global_boxes`` box sizes, else that many around the prediction."""
+    from vidtrack.measure.mil_fusion import global_region
+
+    centre, region = global_region((320, 240), (40, 50), (30, 36), 32.0)   # a small frame: all of it, as always
+    assert np.allclose(centre, (160, 120)) and np.allclose(region, (320, 240))
+    centre, region = global_region((3840, 2160), (100, 2000), (10, 10), 32.0)   # 4K, a 10x10 box
+    assert np.allclose(region, (320, 320)) and np.allclose(centre, (160, 2000))   # shifted inside the frame
+    rng = np.random.default_rng(6)
+    box = Box.from_center(3000, 1500, 10, 10)
+    img = np.ascontiguousarray(np.broadcast_to(rng.integers(0, 255, (1, 3840, 3), np.uint8), (2160, 3840, 3)))
+    img[1495:1505, 2995:3005] = rng.integers(0, 255, (10, 10, 3), np.uint8)
+    cf = CorrelationFilter(DSST)
+    cf.initialize(img, box)
+    centre, region = global_region((3840, 2160), box.center, box.size, 32.0)
+    result = cf.search(img, centre, region, box.size)
+    small = cf.search(img[1380:1620, 2880:3120], (120, 120), (240, 240), box.size)   # the same box in a small frame
+    assert result.response.size <= 2 * (region[0] / 240) ** 2 * small.response.size
+    assert np.linalg.norm(result.centre - box.center) < box.scale

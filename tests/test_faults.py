@@ -1,4 +1,5 @@
-"""Faults in the middle of a run, with real child processes: stopping signals (SIGINT, SIGTERM, SIGHUP).
+"""Faults in the middle of a run, with real child processes: stopping signals, undecodable frames, a full disk,
+dying eval jobs and Dask workers, concurrent evals, awkward and read-only paths, a cbt grid over its budget.
 
 ``vidtrack`` stopped by SIGINT or SIGTERM finishes every output (boxes, log,
 video, recording with its footer), prints one line and exits 128 + N;
@@ -17,6 +18,7 @@ import time
 import warnings
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 sys.path.insert(0, str(Path(__file__).parent))
@@ -272,14 +274,17 @@ def test_a_video_cut_short_keeps_every_tracked_frame_and_warns_once(tmp_path):
 @pytest.fixture
 def small_disk(tmp_path):
     """A 64 KB tmpfs folder (mounted for the test: needs root, as on this project's machines and CI)."""
+    yield from _tmpfs(tmp_path / "small disk", "64k")
+
+
+def _tmpfs(folder: Path, size: str):
     import os
     import shutil
 
     if os.geteuid() != 0 or shutil.which("mount") is None:
         pytest.skip("mounting a small tmpfs needs root and mount(8)")
-    folder = tmp_path / "small disk"
     folder.mkdir()
-    mounted = subprocess.run(["mount", "-t", "tmpfs", "-o", "size=64k", "tmpfs", str(folder)],
+    mounted = subprocess.run(["mount", "-t", "tmpfs", "-o", f"size={size}", "tmpfs", str(folder)],
                              capture_output=True, text=True)
     if mounted.returncode != 0:
         pytest.skip(f"cannot mount a tmpfs here: {mounted.stderr.strip()}")
@@ -394,3 +399,30 @@ def test_two_evals_on_one_folder_leave_whole_results(tmp_path):
             assert len(read_boxes(out / tracker / f"{name}.txt")) == 300
             assert json.loads((out / tracker / f"{name}.json").read_text())["sequence"] == name
     assert not list(out.rglob("*.part"))
+
+
+def test_a_cbt_grid_over_its_memory_budget_is_refused_in_one_line(tmp_path):
+    frames = write_frames(tmp_path / "img", 3)
+    x, y = square_position(0)
+    done = subprocess.run([sys.executable, "-m", "vidtrack", str(frames), "--init-box", f"{x},{y},16,16",
+                           "--filter", "cbt", "--set", "spacing_boxes=0.01", "--set", "min_spacing=0.1",
+                           "--set", "order=3", "-q", "--boxes", str(tmp_path / "b.txt")],
+                          cwd=tmp_path, capture_output=True, text=True, timeout=120)
+    assert done.returncode == 2 and not (tmp_path / "b.txt").exists()
+    assert re.fullmatch(r"vidtrack: error: cbt: a position grid of \d+x\d+ channels of order 3 needs \d+ MB, over "
+                        r"the 512 MB budget; raise spacing_boxes or lower window_boxes or order\n", done.stderr)
+
+
+def test_opencv_tld_over_its_memory_budget_is_refused_in_one_line(tmp_path):
+    import cv2
+
+    folder = tmp_path / "4k"
+    folder.mkdir()
+    cv2.imwrite(str(folder / "0000.png"), np.full((2160, 3840, 3), 80, np.uint8))
+    done = subprocess.run([sys.executable, "-m", "vidtrack", str(folder), "--init-box", "1900,1000,10,10",
+                           "--filter", "opencv-tld", "-q", "--boxes", str(tmp_path / "b.txt")],
+                          cwd=tmp_path, capture_output=True, text=True, timeout=120)
+    assert done.returncode == 2 and not (tmp_path / "b.txt").exists()
+    assert re.fullmatch(r"vidtrack: error: opencv-tld scans the whole frame: a 10x10 box on a 3840x2160 frame needs "
+                        r"about \d+ MB, over its 512 MB budget; use a larger box or a downscaled video\n",
+                        done.stderr), done.stderr

@@ -1,7 +1,10 @@
-"""`vidtrack trax` driven by the TraX reference client (vot-trax): the boxes of `vidtrack eval`, re-initialisation."""
+"""`vidtrack trax` driven by the TraX reference client (vot-trax): the boxes of `vidtrack eval`, re-initialisation;
+and by a raw pipe client: malformed messages, a client that disconnects mid-message or stops reading, an image
+that vanishes mid-session (one line on stderr, exit 2 or 1, never a traceback or a hang)."""
 
 import subprocess
 import sys
+import time
 
 import numpy as np
 import pytest
@@ -115,4 +118,79 @@ def test_unreadable_image_ends_the_session_with_one_line(tmp_path):
     assert tracker.process.wait(timeout=60) == 2
     tracker.stderr.close()
     lines = (tmp_path / "stderr.txt").read_text().splitlines()
-    assert lines == [f"vidtrack: error: cannot decode image {tmp_path / 'missing.jpg'}"]
+    assert lines == [f"vidtrack: error: cannot decode image {tmp_path / 'missing.jpg'}: no such file"]
+
+
+class RawClient:
+    """`vidtrack trax --filter kalman-cv` spoken to with raw bytes over its stdin/stdout."""
+
+    def __init__(self, tmp_path):
+        import cv2
+
+        self.image = tmp_path / "frame one.png"   # a space, as a path may have
+        cv2.imwrite(str(self.image), np.full((60, 80, 3), 90, np.uint8))
+        self.process = subprocess.Popen([sys.executable, "-m", "vidtrack", "trax", "--filter", "kalman-cv"],
+                                        stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+        assert self.process.stdout.readline().startswith(b"@@TRAX:hello ")
+
+    def send(self, data: bytes) -> None:
+        self.process.stdin.write(data)
+        self.process.stdin.flush()
+
+    def initialize(self) -> bytes:
+        # what the reference client sends: the region, then the image
+        self.send(b'@@TRAX:initialize "10,10,20,20" \n@@TRAX:frame "file://' + str(self.image).encode() + b'" \n')
+        return self.process.stdout.readline()
+
+    def end(self, timeout: float = 30.0) -> tuple[int, list[str]]:
+        """Exit code and stderr lines; fails (and kills the server) if it has not ended by ``timeout``."""
+        deadline = time.monotonic() + timeout
+        while self.process.poll() is None:
+            if time.monotonic() > deadline:
+                self.process.kill()
+                raise AssertionError("the TraX server hung")
+            time.sleep(0.05)
+        return self.process.returncode, self.process.stderr.read().decode().splitlines()
+
+
+@pytest.mark.parametrize("message,reason", [
+    (b"hello there\n", "not a TraX message: 'hello there'"),
+    (b"@@TRAX:frobnicate 1 2\n", "a client may not send 'frobnicate' (only initialize, frame, quit)"),
+    (b'@@TRAX:initialize "1,2,3" \n@@TRAX:frame "file:///nowhere.png" \n', "malformed 'frame' message"),
+])
+def test_a_malformed_message_is_one_line_and_exit_2(tmp_path, message, reason):
+    client = RawClient(tmp_path)
+    client.send(message)   # the pipe stays open: the server must not wait for more
+    code, lines = client.end()
+    assert (code, lines) == (2, [f"vidtrack: error: TraX protocol error: {reason}"])
+    assert client.process.stdout.read().startswith(b"@@TRAX:quit")
+
+
+@pytest.mark.parametrize("cut", ["between messages", "mid-message"])
+def test_a_client_that_disconnects_is_one_line_and_exit_1(tmp_path, cut):
+    client = RawClient(tmp_path)
+    assert client.initialize().startswith(b'@@TRAX:state "10.0000,10.0000,20.0000,20.0000"')
+    if cut == "mid-message":
+        client.send(b'@@TRAX:frame "file://' + str(client.image).encode()[:5])
+    client.process.stdin.close()
+    code, lines = client.end()
+    where = " in the middle of a message" if cut == "mid-message" else ""
+    assert (code, lines) == (1, [f"vidtrack: error: TraX client disconnected{where} after 1 frame without quitting"])
+
+
+def test_a_client_that_stops_reading_is_one_line_and_exit_1(tmp_path):
+    client = RawClient(tmp_path)
+    client.process.stdout.close()   # the client's end of the server's replies is gone, its requests still open
+    client.send(b'@@TRAX:initialize "10,10,20,20" \n@@TRAX:frame "file://' + str(client.image).encode() + b'" \n')
+    code, lines = client.end()
+    assert (code, lines) == (1, ["vidtrack: error: TraX client disconnected after 1 frame without quitting"])
+
+
+def test_an_image_that_vanishes_mid_session_is_one_line_and_exit_2(tmp_path):
+    client = RawClient(tmp_path)
+    assert client.initialize().startswith(b"@@TRAX:state ")
+    client.image.unlink()
+    client.send(b'@@TRAX:frame "file://' + str(client.image).encode() + b'" \n')
+    code, lines = client.end()
+    assert (code, lines) == (2, [f"vidtrack: error: cannot decode image {client.image}: no such file"])
+    assert client.process.stdout.readline().startswith(b'@@TRAX:quit "trax.reason=cannot decode image')

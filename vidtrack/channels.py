@@ -448,7 +448,29 @@ def position_conditional(D: np.ndarray, d_basis: ChannelBasis, pos_basis: Channe
     M = D
     for j in range(n):  # contract every displacement axis (each contraction appends its axis at the end)
         M = np.tensordot(M, E_next if j == 0 else E_cond, axes=([0], [1]))
-    idx = np.indices((C,) * (n + 1))
+    idx = np.ogrid[tuple(slice(0, C) for _ in range(n + 1))]  # open grids: no (n+1, C^(n+1)) index array
     keys = tuple(idx[j] - idx[j + 1] + C - 1 for j in range(n))
-    G = M[keys] + 1e-9
-    return G / G.sum(axis=0, keepdims=True)
+    G = M[keys]
+    G += 1e-9
+    G /= G.sum(axis=0, keepdims=True)
+    return G
+
+
+def shift_tensor(W: np.ndarray, shift: int) -> np.ndarray:
+    """``W`` moved by ``shift`` whole channels towards lower indices along every axis, zeros shifted in.
+
+    ``out[i, j, ...] = W[i + shift, j + shift, ...]``: the tensor of the same
+    positions on a grid whose origin moved ``shift`` channels up.  Mass that
+    leaves the grid is dropped (the result is not renormalised).
+    """
+    shift = int(shift)
+    if shift == 0:
+        return W
+    out = np.zeros_like(W)
+    C = W.shape[0]
+    if abs(shift) >= C:
+        return out
+    src = slice(shift, C) if shift > 0 else slice(0, C + shift)
+    dst = slice(0, C - shift) if shift > 0 else slice(-shift, C)
+    out[(dst,) * W.ndim] = W[(src,) * W.ndim]
+    return out

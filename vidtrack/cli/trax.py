@@ -18,17 +18,32 @@ Images arrive as file paths (what the toolkit sends) or as memory images
 0-based pixels (the toolkit's own convention for its ground truth); a polygon
 is reduced to its bounding rectangle by the client library.  Nothing but the
 protocol is written to stdout: messages go to stderr.
+
+Faults (over stdin/stdout, where :class:`MessageRelay` hands libtrax only
+whole messages): a line that is not a TraX message, a message the client may
+not send, or one libtrax cannot parse ends the session with one line
+``vidtrack: error: TraX protocol error: ...`` and exit 2; an image that
+cannot be read (a path that vanished, a broken file) with one line naming it,
+exit 2 (the client is told why in the ``quit`` message); a client that
+disconnects without ``quit`` (its end of the pipe closed, also in the middle
+of a message or while a reply is being sent) with one line ``vidtrack: error:
+TraX client disconnected after N frames ...``, exit 1.  A client that stays
+connected and sends nothing is waited for: a server has no time limit.
 """
 
 from __future__ import annotations
 
 import argparse
+import os
+import select
+import sys
+import threading
 from typing import Any, Sequence
 
 import numpy as np
 
 from ..errors import SourceError, UsageError, VidtrackError
-from .common import EXIT_OK, OneLineParser, add_filter_argument, add_settings_arguments, default_filter, \
+from .common import EXIT_FAILED, EXIT_OK, OneLineParser, error_line, add_filter_argument, add_settings_arguments, default_filter, \
     tracker_settings
 
 DESCRIPTION = ("Serve a vidtrack tracker over the TraX protocol (the VOT toolkit's), on stdin/stdout "
@@ -46,6 +61,107 @@ def build_parser() -> OneLineParser:
     return parser
 
 
+#: The messages a TraX client sends to a server.
+CLIENT_MESSAGES = ("initialize", "frame", "quit")
+PREFIX = b"@@TRAX:"
+
+
+def message_end(buffer: bytes) -> int | None:
+    """Index of the newline ending the first whole TraX message in ``buffer``, or None.
+
+    Arguments may be quoted strings (``\\"`` and ``\\\\`` escaped inside)
+    holding newlines: only a newline outside quotes ends a message.
+    """
+    quoted = escaped = False
+    for i, byte in enumerate(buffer):
+        if escaped:
+            escaped = False
+        elif quoted and byte == 0x5C:   # backslash
+            escaped = True
+        elif byte == 0x22:              # double quote
+            quoted = not quoted
+        elif byte == 0x0A and not quoted:
+            return i
+    return None
+
+
+def message_problem(message: bytes) -> str | None:
+    """Why ``message`` (one whole line) is not a message a TraX client may send, or None when it is."""
+    text = message.strip()
+    if not text.startswith(PREFIX):
+        shown = text[:40].decode("utf-8", "replace")
+        return f"not a TraX message: {shown!r}"
+    name = text[len(PREFIX):].split(b" ", 1)[0].decode("utf-8", "replace")
+    if name not in CLIENT_MESSAGES:
+        return f"a client may not send {name!r} (only {', '.join(CLIENT_MESSAGES)})"
+    return None
+
+
+class MessageRelay:
+    """Reads the client's stdin and hands libtrax only whole, well-formed messages through a pipe on fd 0.
+
+    libtrax waits forever on a message cut short by the end of its input and
+    silently skips lines it does not know; the relay turns both into a
+    reason (``problem``: a protocol error; ``disconnected``: the input
+    ended, ``partial`` when in the middle of a message).  On a protocol
+    error it closes the pipe, so libtrax's wait fails at once; at the end of
+    the input it first hands libtrax a ``quit`` of its own (a message
+    before it that libtrax cannot parse still fails as malformed, the others
+    are answered), so a disconnection is told apart from a broken message.
+    """
+
+    def __init__(self) -> None:
+        self.problem: str | None = None
+        self.disconnected = False
+        self.partial = False
+        self.last: str | None = None
+        self._source = os.dup(0)
+        read_end, self._sink = os.pipe()
+        os.dup2(read_end, 0)
+        os.close(read_end)
+        self._thread = threading.Thread(target=self._run, name="trax-relay", daemon=True)
+        self._thread.start()
+
+    def _run(self) -> None:
+        buffer = b""
+        try:
+            while self.problem is None:
+                chunk = os.read(self._source, 1 << 16)
+                if not chunk:
+                    self.partial = bool(buffer.strip())
+                    self.disconnected = True
+                    os.write(self._sink, PREFIX + b"quit \n")
+                    return
+                buffer += chunk
+                while (end := message_end(buffer)) is not None:
+                    message, buffer = buffer[:end + 1], buffer[end + 1:]
+                    if not message.strip():
+                        continue
+                    self.problem = message_problem(message)
+                    if self.problem is not None:
+                        return
+                    self.last = message.strip()[len(PREFIX):].split(b" ", 1)[0].decode()
+                    os.write(self._sink, message)
+        except OSError:   # libtrax already closed its end of the pipe: the server is ending
+            pass
+        finally:
+            try:
+                os.close(self._sink)
+            except OSError:
+                pass
+
+    @staticmethod
+    def output_closed() -> bool:
+        """True when the client closed its end of our stdout (a pipe then polls as an error)."""
+        poller = select.poll()
+        poller.register(1, select.POLLOUT)
+        return any(event & (select.POLLERR | select.POLLHUP) for _, event in poller.poll(0))
+
+    def settle(self, timeout: float = 2.0) -> None:
+        """Give the relay a moment to record why the input stopped (libtrax may notice first)."""
+        self._thread.join(timeout)
+
+
 def read_image(image: Any) -> np.ndarray:
     """A TraX image (path or memory) -> ``(H, W, 3) uint8`` BGR.
 
@@ -59,9 +175,12 @@ def read_image(image: Any) -> np.ndarray:
 
     kind = image.type()
     if kind == Image.PATH:
-        decoded = cv2.imread(image.path(), cv2.IMREAD_COLOR)
+        path = image.path()
+        if not os.path.isfile(path):
+            raise SourceError(f"cannot decode image {path}: no such file")
+        decoded = cv2.imread(path, cv2.IMREAD_COLOR)
         if decoded is None:
-            raise SourceError(f"cannot decode image {image.path()}")
+            raise SourceError(f"cannot decode image {path}")
         return decoded
     if kind == Image.MEMORY:
         array = np.asarray(image.array())
@@ -90,13 +209,31 @@ def reply(server: Any, state) -> None:
     server.status([(Rectangle.create(box.x, box.y, box.w, box.h), properties)])
 
 
-def serve(server: Any, make_tracker) -> int:
+class ClientGone(Exception):
+    """The client closed its end of the connection while the server was answering."""
+
+
+class Session:
+    """Frames tracked so far in a TraX session (read when the connection fails part-way).
+
+    ``output_closed()`` tells, after each reply, whether the client stopped reading.
+    """
+
+    frames = 0
+
+    @staticmethod
+    def output_closed() -> bool:
+        return False
+
+
+def serve(server: Any, make_tracker, session: Session | None = None) -> int:
     """Answer ``server``'s requests until the client quits; return the number of frames tracked.
 
     ``make_tracker()`` builds a fresh :class:`~vidtrack.api.VidtrackTracker`
-    for every ``INITIALIZE``.
+    for every ``INITIALIZE``; ``session.frames`` counts the frames answered.
     """
-    from trax import TraxStatus
+    session = session if session is not None else Session()
+    from trax import TraxException, TraxStatus
 
     from ..api import check_inside
     from ..types import Frame
@@ -123,7 +260,13 @@ def serve(server: Any, make_tracker) -> int:
                 raise UsageError("TraX FRAME before INITIALIZE")
             state = tracker.step_frame(Frame(tracker.next_index_, image))
         frames += 1
-        reply(server, state)
+        try:
+            reply(server, state)
+        except TraxException as exc:
+            raise ClientGone(str(exc)) from None
+        session.frames = frames
+        if session.output_closed():
+            raise ClientGone("the client stopped reading")
 
 
 def main(argv: Sequence[str]) -> int:
@@ -144,18 +287,44 @@ def main(argv: Sequence[str]) -> int:
         cv2.setRNGSeed(args.seed)
         return create(name, seed=args.seed, settings=settings)
 
+    relay = None if os.environ.get("TRAX_SOCKET") else MessageRelay()
     try:
         server = Server([Region.RECTANGLE], [Image.PATH, Image.MEMORY], tracker_name=f"vidtrack-{name}",
                         tracker_description=f"vidtrack {name}", tracker_family="vidtrack",
                         log=args.trax_log or False)
     except TraxException as exc:
         raise UsageError(f"cannot start the TraX server: {exc}") from None
+    session = Session()
+    if relay is not None:
+        session.output_closed = relay.output_closed
     try:
-        serve(server, make_tracker)
+        frames = serve(server, make_tracker, session)
     except VidtrackError as exc:   # tell the client why, then the CLI's one line and exit 2
         server.quit(reason=str(exc))
         raise
-    except TraxException as exc:   # the client went away or broke the protocol
-        raise UsageError(f"TraX connection failed: {exc}") from None
+    except (TraxException, ClientGone) as exc:   # the client went away or broke the protocol
+        return connection_failed(exc, relay, session.frames)
     server.quit()
+    if relay is not None and relay.disconnected:   # the quit was the relay's: the client went away
+        return disconnected(relay, frames)
     return EXIT_OK
+
+
+def disconnected(relay: MessageRelay | None, frames: int) -> int:
+    """One line for a client that went away part-way; exit 1."""
+    where = " in the middle of a message" if relay is not None and relay.partial else ""
+    print(error_line(f"TraX client disconnected{where} after {frames} frame{'s' if frames != 1 else ''} "
+                     f"without quitting"), file=sys.stderr)
+    return EXIT_FAILED
+
+
+def connection_failed(exc: Exception, relay: MessageRelay | None, frames: int) -> int:
+    """The one line and exit code of a TraX session that failed part-way (see the module's docstring)."""
+    if relay is not None:
+        relay.settle()
+    if relay is not None and relay.problem is not None:
+        raise UsageError(f"TraX protocol error: {relay.problem}")
+    if isinstance(exc, ClientGone) or relay is None:
+        return disconnected(relay, frames)   # a reply could not be written, or libtrax found its socket closed
+    last = f" {relay.last!r}" if relay.last else ""
+    raise UsageError(f"TraX protocol error: malformed{last} message")

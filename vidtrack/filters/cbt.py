@@ -10,7 +10,8 @@ updated with the channel-encoded detections (eq. 10)::
 
 and the transition is learned by the normalised covariance of consecutive
 channel vectors (eq. 11).  :class:`CBTFilter` applies this to the centre of a
-box on a grid over the whole frame, with a motion model in units of the box
+box on a grid that follows the target (a window a fixed number of box sizes
+wide, so its cost follows the box, not the frame), with a motion model in units of the box
 that it learns while tracking or reads from a :class:`~vidtrack.filters.cbt_model.CBTModel`.
 The detections come from :class:`~vidtrack.measure.detections.DetectionMeasurer`
 (the ``cbt`` recipe, :mod:`vidtrack.recipes.channels`).
@@ -23,22 +24,53 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..channels import (ChannelBasis, conditional_from_counts, current_marginal, decode_nd, decode_nd_modes,
-                        diagonal_history, displacement_counts, embedded_predict, encode, history_prior,
-                        position_conditional, random_walk_displacement)
+                        diagonal_history, displacement_counts, embedded_predict, encode, history_prior, normalized,
+                        position_conditional, random_walk_displacement, shift_tensor)
 from ..errors import UsageError
 from ..types import LOST, TRACKING, Box, Detections, Estimate, Frame, Measurement
 from .cbt_model import CBTModel
 from .channels import mean_field_update, product_likelihood
+
+#: Largest memory, in MB, the position grid's transition tensors may take (both axes, with the temporaries
+#: of building them); a configuration needing more is refused when the filter starts.
+MEMORY_BUDGET_MB = 512.0
+
+
+def grid_megabytes(channels: int, order: int) -> float:
+    """MB of one axis' transition tensor ``G`` (``channels^(order+1)`` floats) with the temporaries building it."""
+    return 3 * 8 * float(channels) ** (order + 1) / 2 ** 20
+
+
+def window_layout(extent: float, spacing: float, window: float, centre: float) -> tuple[int, int]:
+    """Channel count and first lattice index ``k`` (grid origin ``k * spacing``) of one axis.
+
+    The position grid covers ``[0, extent]`` when ``window >= extent``
+    (``k = 0``), otherwise ``window`` pixels on the lattice of multiples of
+    ``spacing``, centred on ``centre`` as closely as the lattice allows and
+    kept inside ``[0, extent]``.
+    """
+    if window >= extent:
+        return ChannelBasis.with_spacing(0.0, float(extent), spacing).n, 0
+    n = max(4, int(np.ceil(window / spacing)) + 3)
+    k_max = max(0, int(np.floor((extent - (n - 3) * spacing) / spacing)))
+    k = int(np.clip(np.round((centre - 0.5 * (n - 3) * spacing) / spacing), 0, k_max))
+    return n, k
 
 
 @dataclass
 class CBTFilter:
     """Channel-based tracking of the box centre from unassociated detections (eq. 10).
 
-    State: the box centre on a cos² channel grid over the whole frame, with
-    spacing ``spacing_boxes`` box sizes but at least ``min_spacing`` px (so
-    the grid has as many channels per box on a 1280x720 frame as on a
-    320x240 one).  Each axis carries an order-``order`` embedded Markov
+    State: the box centre on a cos² channel grid with spacing
+    ``spacing_boxes`` box sizes but at least ``min_spacing`` px, over a
+    window ``window_boxes`` box sizes (at least ``min_window`` px) wide
+    around the target, or the whole frame when that is smaller.  The window
+    moves with the estimate by whole channels: the transition is
+    translation-invariant, so moving it only shifts the history tensors
+    (mass beyond the window, far from the target, is dropped).  Memory and
+    time per frame therefore follow the box, never the frame; a
+    configuration whose grid would exceed ``MEMORY_BUDGET_MB`` is refused
+    when the filter starts (a UsageError).  Each axis carries an order-``order`` embedded Markov
     model (state = the last ``order`` positions); the joint of the current
     centre is the product of the axis marginals (mean field), the 2-D update
     with the detections is exact and its result is re-factorised
@@ -69,6 +101,8 @@ class CBTFilter:
         Markov order of the motion model (positions in the state).
     spacing_boxes, min_spacing
         Position grid spacing in box sizes, and its lower bound in pixels.
+    window_boxes, min_window
+        Side of the position grid in box sizes, and its lower bound in pixels.
     d_channels, d_range
         Channels of the displacement model and the largest displacement per
         frame it represents, in box sizes.
@@ -104,6 +138,8 @@ class CBTFilter:
     order: int = 2
     spacing_boxes: float = 0.2
     min_spacing: float = 2.0
+    window_boxes: float = 10.0
+    min_window: float = 64.0
     d_channels: int = 15
     d_range: float = 0.6
     prior_sigma: float = 0.12
@@ -125,10 +161,18 @@ class CBTFilter:
         height = frame.height if frame is not None else int(box.y + 4 * box.h)
         self.size_ = box.size.copy()
         self.scale_ = box.scale
-        spacing = float(max(self.spacing_boxes * self.scale_, self.min_spacing))
-        self.bases_ = (ChannelBasis.with_spacing(0.0, float(width), spacing),
-                       ChannelBasis.with_spacing(0.0, float(height), spacing))
+        self.spacing_ = spacing = float(max(self.spacing_boxes * self.scale_, self.min_spacing))
+        self.window_ = float(max(self.window_boxes * self.scale_, self.min_window))
         self.frame_size_ = (width, height)
+        centre = box.center
+        layouts = [window_layout(extent, spacing, self.window_, c) for extent, c in zip(self.frame_size_, centre)]
+        needed = sum(grid_megabytes(n, self.order) for n, _ in layouts)
+        if needed > MEMORY_BUDGET_MB:
+            raise UsageError(f"cbt: a position grid of {layouts[0][0]}x{layouts[1][0]} channels of order "
+                             f"{self.order} needs {needed:.0f} MB, over the {MEMORY_BUDGET_MB:.0f} MB budget; "
+                             f"raise spacing_boxes or lower window_boxes or order")
+        self.origin_ = [k for _, k in layouts]
+        self.bases_ = tuple(self._basis(n, k) for n, k in layouts)
         if self.model is not None:
             if self.model.order != self.order:
                 raise UsageError(f"the CBT model has order {self.model.order}, the filter {self.order}")
@@ -140,7 +184,6 @@ class CBTFilter:
         self.prior_D_ = list(self.D_)
         self.counts_ = [np.zeros_like(D) for D in self.D_]
         self.G_ = [position_conditional(D, self.d_basis_, b, self.scale_) for D, b in zip(self.D_, self.bases_)]
-        centre = box.center
         # First-frame prior: the initial centre over the whole history.
         self.W_ = [history_prior(encode(centre[axis], b), self.order) for axis, b in enumerate(self.bases_)]
         self.history_ = [centre.copy()]
@@ -151,6 +194,19 @@ class CBTFilter:
     @property
     def estimate(self) -> Estimate:
         return self.estimate_
+
+    def _basis(self, n: int, k: int) -> ChannelBasis:
+        return ChannelBasis(k * self.spacing_, (k + n - 3) * self.spacing_, n)
+
+    def _follow(self, centre: np.ndarray) -> None:
+        """Move each axis' window by whole channels so it is centred on ``centre`` (a no-op on a whole-frame grid)."""
+        for axis in range(2):
+            n, k = window_layout(self.frame_size_[axis], self.spacing_, self.window_, float(centre[axis]))
+            shift = k - self.origin_[axis]
+            if shift:
+                self.W_[axis] = normalized(shift_tensor(self.W_[axis], shift))
+                self.origin_[axis] = k
+        self.bases_ = tuple(self._basis(b.n, k) for b, k in zip(self.bases_, self.origin_))
 
     def _box_at(self, centre: np.ndarray) -> Box:
         return Box.from_center(float(centre[0]), float(centre[1]), *self.size_)
@@ -164,6 +220,7 @@ class CBTFilter:
         return np.array([self.bases_[0].from_channel(t[0]), self.bases_[1].from_channel(t[1])])
 
     def predict(self) -> Estimate:
+        self._follow(self.estimate_.box.center)
         self.W_ = [embedded_predict(W, G) for W, G in zip(self.W_, self.G_)]  # w_{k|k-1} = F w_{k-1|k-1}
         t, mass = decode_nd(self._prior_joint())
         self.prior_box_ = self._box_at(np.clip(self._to_frame(t), 0.0, np.asarray(self.frame_size_, float)))

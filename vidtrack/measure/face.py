@@ -112,13 +112,14 @@ class FaceScoreMapMeasurer:
         self.box_size_ = (float(box.w), float(box.h))
 
     def measure(self, frame: Frame, prior: Estimate) -> ScoreMap | None:
-        gray = frame.image if frame.image.ndim == 2 else cv2.cvtColor(frame.image, cv2.COLOR_BGR2GRAY)
         cx, cy = prior.box.center
-        region = search_window(Box.from_center(cx, cy, *self.box_size_), self.margin, gray.shape[1], gray.shape[0])
+        region = search_window(Box.from_center(cx, cy, *self.box_size_), self.margin, frame.width, frame.height)
         if region.w < self.box_size_[0] or region.h < self.box_size_[1]:
             return None
         x0, y0 = int(region.x), int(region.y)
-        crop = gray[y0:int(np.ceil(region.y + region.h)), x0:int(np.ceil(region.x + region.w))]
+        crop = frame.image[y0:int(np.ceil(region.y + region.h)), x0:int(np.ceil(region.x + region.w))]
+        if crop.ndim == 3:   # only the search window is converted to grey
+            crop = cv2.cvtColor(crop, cv2.COLOR_BGR2GRAY)
         boxes, strengths = self.detect_(np.ascontiguousarray(crop))
         boxes = np.asarray(boxes, dtype=float).reshape(-1, 4) + np.array([x0, y0, 0, 0])
         scores, origin = detections_score_map(boxes, np.asarray(strengths, float), region, self.box_size_, self.step)

@@ -12,7 +12,9 @@ pixel.  The similarity is the Bhattacharyya coefficient
 ``rho = sum_u sqrt(p_u q_u)`` (eq. 17).  Scale follows section 4.3: the best
 of ``h, (1 -/+ delta) h`` by ``rho``, blended with ``gamma = 0.1``.
 
-Grey images (all channels equal) use a 1-D intensity histogram.
+Grey images (all channels equal) use a 1-D intensity histogram.  Only a
+window a fixed number of box sizes around the box is binned
+(:func:`window_bins`), so the cost per frame follows the box, not the frame.
 """
 
 from __future__ import annotations
@@ -41,6 +43,25 @@ def bin_image(image: np.ndarray, *, gray: bool, bins: int) -> np.ndarray:
         return (channel >> shift).astype(np.int32)
     q = (image >> shift).astype(np.int32)
     return (q[..., 0] * bins + q[..., 1]) * bins + q[..., 2]
+
+
+def window_bins(image: np.ndarray, box: Box, margin: float, *, gray: bool,
+                bins: int) -> tuple[np.ndarray, tuple[int, int]]:
+    """:func:`bin_image` of ``box`` grown by ``margin`` box sizes on each side (clipped to the image).
+
+    Returns the ``(h, w) int32`` bin indices and the window's top-left pixel
+    ``(x0, y0)`` in image coordinates.
+    """
+    H, W = image.shape[:2]
+    r = Box(box.x - margin * box.w, box.y - margin * box.h, box.w * (1 + 2 * margin),
+            box.h * (1 + 2 * margin)).clipped(W, H)
+    x0, y0 = min(int(np.floor(r.x)), W - 1), min(int(np.floor(r.y)), H - 1)
+    x1, y1 = max(int(np.ceil(r.x + r.w)), x0 + 1), max(int(np.ceil(r.y + r.h)), y0 + 1)
+    return bin_image(image[y0:y1, x0:x1], gray=gray, bins=bins), (x0, y0)
+
+
+def _moved(box: Box, dx: float, dy: float) -> Box:
+    return Box(box.x + dx, box.y + dy, box.w, box.h)
 
 
 def histogram_layout(bins: int, gray: bool) -> tuple[int, int]:
@@ -152,6 +173,9 @@ class MeanShiftMeasurer:
         Blend of the best size with the previous one.
     position_sigma
         Measurement standard deviation as a fraction of the box size at rho = 1.
+    search_margin
+        The iterations see the prior box grown by this many box sizes on each
+        side (pixels beyond count as outside the frame).
     """
 
     bins: int = 16
@@ -159,14 +183,16 @@ class MeanShiftMeasurer:
     scale_step: float = 0.0
     scale_gamma: float = 0.1
     position_sigma: float = 0.04
+    search_margin: float = 3.0
 
     def initialize(self, frame: Frame, box: Box) -> None:
         self.gray_ = is_gray(frame.image)
         self.channel_bins_, self.n_bins_ = histogram_layout(self.bins, self.gray_)
-        bins_img = self._bins(frame)
-        q, _ = kernel_histogram(bins_img, box, self.n_bins_)
+        bins_img, (ox, oy) = self._bins(frame, box, 1.5)   # the background ring is the box scaled by 3
+        local = _moved(box, -ox, -oy)
+        q, _ = kernel_histogram(bins_img, local, self.n_bins_)
         if self.background_weighting:
-            q = self._background_weighted(bins_img, box, q)
+            q = self._background_weighted(bins_img, local, q)
         self.q_ = q
         self.size_ = box.size.copy()
 
@@ -188,12 +214,14 @@ class MeanShiftMeasurer:
         weighted = q * v
         return weighted / weighted.sum() if weighted.sum() > 0 else q
 
-    def _bins(self, frame: Frame) -> np.ndarray:
-        return bin_image(frame.image, gray=self.gray_, bins=self.channel_bins_)
+    def _bins(self, frame: Frame, box: Box, margin: float) -> tuple[np.ndarray, tuple[int, int]]:
+        return window_bins(frame.image, box, margin, gray=self.gray_, bins=self.channel_bins_)
 
     def measure(self, frame: Frame, prior: Estimate) -> PointMeasurement | None:
-        bins_img = self._bins(frame)
         cx, cy = prior.box.center
+        reach = Box.from_center(cx, cy, *(self.size_ * max(1.0, 1.0 + self.scale_step)))
+        bins_img, (ox, oy) = self._bins(frame, reach, self.search_margin)
+        cx, cy = cx - ox, cy - oy   # window coordinates from here on
         best = None
         scales = (1.0,) if self.scale_step <= 0 else (1.0, 1.0 - self.scale_step, 1.0 + self.scale_step)
         for s in scales:
@@ -205,11 +233,12 @@ class MeanShiftMeasurer:
         new_size = self.scale_gamma * self.size_ * s + (1 - self.scale_gamma) * self.size_
         measured = Box.from_center(*box.center, *new_size)
         self.pending_size_ = new_size
-        region = prior.box.scaled(2.0)
+        region = _moved(prior.box, -ox, -oy).scaled(2.0)
         p, _ = kernel_histogram(bins_img, measured, self.n_bins_)
         sigma = self.position_sigma * float(np.mean(new_size)) / max(rho, 0.05)
+        measured = _moved(measured, ox, oy)
         return PointMeasurement(z=measured.center, R=np.eye(2) * sigma ** 2, box=measured, quality=rho,
-                                search_region=region,
+                                search_region=_moved(region, ox, oy),
                                 stages={"backprojection": backprojection(bins_img, self.q_, p, region)})
 
     def learn(self, frame: Frame, posterior: Estimate) -> None:

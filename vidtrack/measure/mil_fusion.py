@@ -25,7 +25,9 @@ the posterior box of confident frames.  What the filter adds, each part of
   long is no longer an occlusion), every ``global_every`` frames, the
   filter restricted to the target's own cells (so a static background the
   target left does not fire) is slid over the whole frame and the window is
-  searched around its best peak.  A peak of quality at least ``reacquire``
+  searched around its best peak (in a frame more than ``global_boxes`` box
+  sizes across, the region of that many box sizes around the prediction:
+  the search's memory and time follow the box).  A peak of quality at least ``reacquire``
   away from the prediction is only a proposal: the superpixels, the SVM and
   the graph cut run around it, and it becomes the measurement only if they
   find the target's inliers there.  Searching the whole frame from the
@@ -61,6 +63,19 @@ from .mil import GraphCutConfig, InlierBox, MILAppearance, SuperpixelConfig, SVM
 from .threads import SecondThread, tic
 
 
+def global_region(frame_size: np.ndarray, centre, box_size, max_boxes: float) -> tuple[np.ndarray, np.ndarray]:
+    """Centre and size of the re-detection region: the whole frame, at most ``max_boxes`` box sizes per side.
+
+    Along an axis where the frame is wider than ``max_boxes`` box sizes the
+    region is that wide, around ``centre`` and shifted to lie inside the
+    frame; elsewhere it is the frame.
+    """
+    frame_size = np.asarray(frame_size, float)
+    region = np.minimum(frame_size, max_boxes * np.maximum(np.asarray(box_size, float), 1.0))
+    low = np.clip(np.asarray(centre, float) - region / 2.0, 0.0, frame_size - region)
+    return low + region / 2.0, region
+
+
 @dataclass(frozen=True)
 class FusionConfig:
     """How the correlation filter joins the superpixels: centre, size, re-detection and the lost status.
@@ -83,6 +98,8 @@ class FusionConfig:
                                    "there")
     global_after: int = option(30, "lost frames before the whole frame is searched")
     global_every: int = option(5, "then the whole frame is searched every this many frames")
+    global_boxes: float = option(32.0, "the whole-frame search covers at most this many box sizes per side, "
+                                       "around the prediction, so its cost follows the box, not the frame")
     present: float | None = option(0.5, "a predicted-only frame is still tracking when the filter's peak of this "
                                         "quality lies at the prediction (none: it is lost)")
     search_when_lost: bool = option(False, "a frame the filter reports lost (its calibrated confidence below "
@@ -342,8 +359,9 @@ class MILMeasurer:
         size = prior.box.size
         centre = prior.box.center
         if whole_frame:
-            whole = np.array([frame.width, frame.height], float)
-            centre = self.cf_.search(frame.image, whole / 2.0, whole, size).centre   # target only: no stale context
+            centre_, region = global_region(np.array([frame.width, frame.height], float), centre, size,
+                                            self.config.fusion.global_boxes)
+            centre = self.cf_.search(frame.image, centre_, region, size).centre   # target only: no stale context
         result = self.cf_.detect(frame.image, centre, size)
         self._background_tic("correlation", t0)
         return result

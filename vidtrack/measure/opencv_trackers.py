@@ -56,6 +56,24 @@ MAX_COVER = {"mil": 0.9, "tld": 0.9}
 MAX_ASPECT = {"tld": 5.0}
 
 
+#: Memory budget (MB) of OpenCV's TLD, whose detector scans the whole frame at every scale: a start
+#: whose estimate (:func:`tld_megabytes`) exceeds it is refused instead of taking the machine down.
+TLD_BUDGET_MB = 512.0
+
+
+def tld_megabytes(box_w: int, box_h: int, width: int, height: int) -> float:
+    """Estimated memory (MB) OpenCV's TLD takes on a ``width x height`` frame for a ``box_w x box_h`` box.
+
+    ``30 MB`` per megapixel of frame plus ``0.0113 MB`` per unit of the
+    frame-to-box area ratio (its scanning grid), fitted to the peak resident
+    memory measured by ``scripts/bench_memory.py`` (above the interpreter's):
+    155 MB for a 10x10 box on 1280x720, 305 MB for 40x40 and 1180 MB for
+    10x10 on 3840x2160.
+    """
+    pixels = float(width) * float(height)
+    return 30.0 * pixels / 1e6 + 0.0113 * pixels / max(float(box_w) * float(box_h), 1.0)
+
+
 def start_rect(kind: str, box: Box, width: int, height: int) -> tuple[int, int, int, int]:
     """The integer rect OpenCV's ``kind`` tracker is started on: ``box`` clipped to the frame.
 
@@ -63,8 +81,9 @@ def start_rect(kind: str, box: Box, width: int, height: int) -> tuple[int, int, 
     ------
     UsageError
         When the part of ``box`` inside the ``width`` x ``height`` frame is
-        smaller than :data:`MIN_SIDE` or (MIL) leaves no background around it:
-        one line instead of an OpenCV assertion, a crash or a hang.
+        smaller than :data:`MIN_SIDE` or (MIL) leaves no background around it,
+        or (TLD) would need more memory than :data:`TLD_BUDGET_MB`: one line
+        instead of an OpenCV assertion, a crash, a hang or the machine's memory.
     """
     x0, y0 = max(int(round(box.x)), 0), max(int(round(box.y)), 0)
     x1, y1 = min(int(round(box.x + box.w)), width), min(int(round(box.y + box.h)), height)
@@ -79,6 +98,10 @@ def start_rect(kind: str, box: Box, width: int, height: int) -> tuple[int, int, 
     aspect = MAX_ASPECT.get(kind)
     if aspect is not None and max(w, h) > aspect * min(w, h):
         raise UsageError(f"opencv-{kind} needs a box at most {aspect:g} times longer than wide, got {w}x{h}")
+    if kind == "tld" and (need := tld_megabytes(w, h, width, height)) > TLD_BUDGET_MB:
+        raise UsageError(f"opencv-tld scans the whole frame: a {w}x{h} box on a {width}x{height} frame needs "
+                         f"about {need:.0f} MB, over its {TLD_BUDGET_MB:.0f} MB budget; use a larger box or "
+                         f"a downscaled video")
     return x0, y0, w, h
 
 

@@ -45,15 +45,22 @@ def ncc_score_map(gray: np.ndarray, template: np.ndarray, region: Box) -> tuple[
         ``scores[i, j]`` for the box with top-left ``origin + (j, i)``.
     origin : (x0, y0)
     """
+    x0, y0, x1, y1 = window_pixels(region, template.shape[1], template.shape[0], gray.shape[1], gray.shape[0])
+    return _ncc(gray[y0:y1, x0:x1], template), (float(x0), float(y0))
+
+
+def window_pixels(region: Box, tw: int, th: int, width: int, height: int) -> tuple[int, int, int, int]:
+    """``(x0, y0, x1, y1)`` of ``region`` in a ``width x height`` image, at least the template's ``tw x th``."""
     x0, y0 = int(np.floor(region.x)), int(np.floor(region.y))
     x1, y1 = int(np.ceil(region.x + region.w)), int(np.ceil(region.y + region.h))
-    th, tw = template.shape
     x1, y1 = max(x1, x0 + tw), max(y1, y0 + th)
-    x0, y0 = max(0, min(x0, gray.shape[1] - tw)), max(0, min(y0, gray.shape[0] - th))
-    window = gray[y0:y1, x0:x1]
+    x0, y0 = max(0, min(x0, width - tw)), max(0, min(y0, height - th))
+    return x0, y0, x1, y1
+
+
+def _ncc(window: np.ndarray, template: np.ndarray) -> np.ndarray:
     scores = cv2.matchTemplate(window, template, cv2.TM_CCOEFF_NORMED)
-    scores = np.nan_to_num(scores, nan=0.0, posinf=0.0, neginf=0.0)
-    return scores, (float(x0), float(y0))
+    return np.nan_to_num(scores, nan=0.0, posinf=0.0, neginf=0.0)
 
 
 @dataclass
@@ -75,27 +82,28 @@ class NCCScoreMapMeasurer:
     learn_above: float = 0.6
 
     def initialize(self, frame: Frame, box: Box) -> None:
-        gray = to_gray(frame.image)
         self.box_size_ = (max(2, int(round(box.w))), max(2, int(round(box.h))))
-        self.template_ = self._patch(gray, box)
+        self.template_ = self._patch(frame.image, box)
         self.initial_template_ = self.template_.copy()
         self.last_peak_ = 1.0
 
-    def _patch(self, gray: np.ndarray, box: Box) -> np.ndarray:
+    def _patch(self, image: np.ndarray, box: Box) -> np.ndarray:
+        """The grey ``(h, w) float32`` patch of ``box`` (only those pixels are converted)."""
         w, h = self.box_size_
-        x = int(np.clip(round(box.x), 0, gray.shape[1] - w))
-        y = int(np.clip(round(box.y), 0, gray.shape[0] - h))
-        return gray[y:y + h, x:x + w].copy()
+        x = int(np.clip(round(box.x), 0, image.shape[1] - w))
+        y = int(np.clip(round(box.y), 0, image.shape[0] - h))
+        return to_gray(image[y:y + h, x:x + w])
 
     def measure(self, frame: Frame, prior: Estimate) -> ScoreMap | None:
-        gray = to_gray(frame.image)
+        W, H = frame.width, frame.height
         w, h = self.box_size_
-        if w >= gray.shape[1] or h >= gray.shape[0]:
+        if w >= W or h >= H:
             return None
         centre = prior.box.center
         search_box = Box.from_center(centre[0], centre[1], w, h)
-        region = search_window(search_box, self.margin, gray.shape[1], gray.shape[0])
-        scores, origin = ncc_score_map(gray, self.template_, region)
+        region = search_window(search_box, self.margin, W, H)
+        x0, y0, x1, y1 = window_pixels(region, w, h, W, H)   # only the search window is converted to grey
+        scores, origin = _ncc(to_gray(frame.image[y0:y1, x0:x1]), self.template_), (float(x0), float(y0))
         peak = float(scores.max()) if scores.size else 0.0
         self.last_peak_ = peak
         shown = Box(origin[0], origin[1], scores.shape[1] + w, scores.shape[0] + h)
@@ -106,7 +114,7 @@ class NCCScoreMapMeasurer:
     def learn(self, frame: Frame, posterior: Estimate) -> None:
         if posterior.status != "tracking" or self.last_peak_ < self.learn_above:
             return
-        patch = self._patch(to_gray(frame.image), posterior.box)
+        patch = self._patch(frame.image, posterior.box)
         self.template_ = (1 - self.learning_rate) * self.template_ + self.learning_rate * patch
         # Anchor to the first appearance so drift cannot run away.
         self.template_ = 0.9 * self.template_ + 0.1 * self.initial_template_

@@ -5,7 +5,7 @@ detector's score map (``detector="ncc"``: the NCC template's), clutter
 included and never associated with the target
 (:class:`~vidtrack.measure.detections.DetectionMeasurer`);
 :class:`~vidtrack.filters.cbt.CBTFilter` tracks the box centre from them on a
-cos² channel grid over the frame (Felsberg & Larsson, "Learning Object
+cos² channel grid that follows the target (Felsberg & Larsson, "Learning Object
 Tracking in Image Sequences").  Its motion model is learned online from its
 own estimates, or read from ``model`` (``--model FILE``: a ``.npz`` written
 by ``vidtrack learn cbt``).
@@ -55,6 +55,8 @@ class CBTConfig:
     d_range: float = option(0.6, "largest displacement per frame the motion model represents, box sizes")
     spacing_boxes: float = option(0.2, "spacing of the position channels, box sizes")
     min_spacing: float = option(2.0, "smallest spacing of the position channels, pixels")
+    window_boxes: float = option(10.0, "side of the position grid that follows the target, box sizes")
+    min_window: float = option(64.0, "smallest side of the position grid, pixels")
     clutter: float = option(0.02, "likelihood floor (clutter and missed detections)")
     score_temperature: float = option(0.05, "temperature of the detection weights exp((score - top) / T)")
     relative_scores: bool = option(True, "weigh detections relative to the frame's best score (false: to 1)")
@@ -74,7 +76,8 @@ def cbt_filter(config: CBTConfig, model: CBTModel | None = None) -> CBTFilter:
     """
     order = config.order if config.order is not None else (model.order if model is not None else DEFAULT_ORDER)
     return CBTFilter(order=order, spacing_boxes=config.spacing_boxes, min_spacing=config.min_spacing,
-                     d_channels=config.d_channels, d_range=config.d_range, prior_sigma=config.prior_sigma,
+                     window_boxes=config.window_boxes,
+                     min_window=config.min_window, d_channels=config.d_channels, d_range=config.d_range, prior_sigma=config.prior_sigma,
                      prior_weight=config.prior_weight, relearn_every=config.relearn_every, clutter=config.clutter,
                      score_temperature=config.score_temperature, product=config.product,
                      learn_online=config.learn_online, lost_below=config.lost_below, mass_full=config.mass_full,
