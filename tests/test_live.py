@@ -286,3 +286,17 @@ def test_inputs_are_told_apart():
     texts = ("-", "0", "12", "rtsp://h/s", "http://h:8080/video.mjpg", "srt://127.0.0.1:9000", "clip.mp4", "./0")
     assert [input_kind(text) for text in texts] == ["stdin", "camera", "camera", "stream", "stream", "stream",
                                                     "file", "file"]
+
+
+def test_python_api_tracks_a_stream_url_live(clip):
+    """``vidtrack.track(URL, ...)`` reads the stream as the command line does: the same boxes as the file."""
+    import vidtrack
+
+    path, chunks, _ = clip
+    box = tuple(int(v) for v in INIT_BOX.split(","))
+    from_file = [s.box for s in vidtrack.track(str(path), box, filter="kalman-cv", max_frames=20)]
+    with TsServer(chunks[:20], 12.5) as server:
+        live = list(vidtrack.track(server.url, boxes=[box], filter="kalman-cv", max_frames=20))
+    assert [states[1].index for states in live] == list(range(20))   # the tracker keeps up: nothing dropped
+    np.testing.assert_allclose([states[1].box.as_array() for states in live],
+                               [b.as_array() for b in from_file], atol=0.01)

@@ -282,6 +282,11 @@ def filters() -> dict[str, str]:
 def as_frames(source: Any) -> Iterable[Frame]:
     """Frames from a video path, a frame folder, or an iterable of images or :class:`~vidtrack.types.Frame`.
 
+    A string may also name a live input as on the command line
+    (:func:`vidtrack.sources.open_input`): a camera index (``"0"``), a stream
+    URL (``"rtsp://..."``, ``"http://..."``) or ``"-"`` for stdin, read live
+    (the newest frame; frames the tracker cannot keep up with are dropped).
+
     Raises
     ------
     SourceError
@@ -289,7 +294,11 @@ def as_frames(source: Any) -> Iterable[Frame]:
     UsageError
         For a source that is neither a path nor iterable.
     """
-    if isinstance(source, (str, Path)):
+    if isinstance(source, str):
+        from .sources import open_input
+
+        return open_input(source)
+    if isinstance(source, Path):
         from .sources import open_source
 
         return open_source(source)
@@ -358,8 +367,9 @@ def track(source: Any, box: Any = None, filter: str = "mil", *, boxes: Any = Non
     Parameters
     ----------
     source
-        A video file, a folder of frame images, or any iterable of BGR
-        ``uint8`` images (or :class:`~vidtrack.types.Frame`).
+        A video file, a folder of frame images, a camera index or stream URL
+        as a string (read live, see :func:`as_frames`), or any iterable of
+        BGR ``uint8`` images (or :class:`~vidtrack.types.Frame`).
     box
         ``x, y, w, h`` of the object in the first frame, 0-based pixels: one
         :class:`~vidtrack.types.TrackState` is yielded per frame.
@@ -400,6 +410,7 @@ def track(source: Any, box: Any = None, filter: str = "mil", *, boxes: Any = Non
                     yield states
             finally:
                 multi.close()
+                _close_source(frames)
 
         return generate()
     tracker = create(filter, seed=seed, settings=settings, **options)
@@ -409,4 +420,18 @@ def track(source: Any, box: Any = None, filter: str = "mil", *, boxes: Any = Non
     def check(frame: Frame, box: Box) -> None:
         check_inside(box, frame.width, frame.height)
 
-    return (state for _, state in track_frames(tracker, frames, box, max_frames=max_frames, validate_box=check))
+    def generate_one() -> Iterator[TrackState]:
+        try:
+            for _, state in track_frames(tracker, frames, box, max_frames=max_frames, validate_box=check):
+                yield state
+        finally:
+            _close_source(frames)
+
+    return generate_one()
+
+
+def _close_source(frames: Any) -> None:
+    """Stop a live source's reader (a camera or stream stays open otherwise); files need nothing."""
+    close = getattr(frames, "close", None)
+    if callable(close):
+        close()
