@@ -67,3 +67,25 @@ def run_and_kill(args: list[str], watch: Path, at_lines: int, *, cwd: Path, time
         if process.poll() is None:
             os.killpg(process.pid, signal.SIGKILL)
         process.wait()
+
+
+def mounted_tmpfs(folder: Path, size: str):
+    """Yield ``folder`` as a fresh tmpfs of ``size`` (``"64k"``), unmounted afterwards: a disk that fills up.
+
+    Skips the test with a reason unless running as root with mount(8).
+    """
+    import shutil
+
+    import pytest
+
+    if os.geteuid() != 0 or shutil.which("mount") is None:
+        pytest.skip("mounting a small tmpfs needs root and mount(8)")
+    folder.mkdir()
+    mounted = subprocess.run(["mount", "-t", "tmpfs", "-o", f"size={size}", "tmpfs", str(folder)],
+                             capture_output=True, text=True)
+    if mounted.returncode != 0:
+        pytest.skip(f"cannot mount a tmpfs here: {mounted.stderr.strip()}")
+    try:
+        yield folder
+    finally:
+        subprocess.run(["umount", "-l", str(folder)], check=False)

@@ -18,7 +18,7 @@ from pathlib import Path
 import pytest
 
 sys.path.insert(0, str(Path(__file__).parent))
-from hard_stop_helpers import square_frame, square_position, write_frames  # noqa: E402
+from hard_stop_helpers import mounted_tmpfs, square_frame, square_position, write_frames  # noqa: E402
 
 from vidtrack.eval.datasets import read_boxes  # noqa: E402
 from vidtrack.sinks.h264 import count_frames  # noqa: E402
@@ -151,18 +151,7 @@ def test_a_read_only_output_folder_is_one_line_and_exit_2(tmp_path, read_only_fo
 @pytest.fixture
 def small_disk(tmp_path):
     """A 256 KB tmpfs folder with a space in its name (mounted for the test: needs root)."""
-    if os.geteuid() != 0 or shutil.which("mount") is None:
-        pytest.skip("mounting a small tmpfs needs root and mount(8)")
-    folder = tmp_path / "petit disque"
-    folder.mkdir()
-    mounted = subprocess.run(["mount", "-t", "tmpfs", "-o", "size=256k", "tmpfs", str(folder)],
-                             capture_output=True, text=True)
-    if mounted.returncode != 0:
-        pytest.skip(f"cannot mount a tmpfs here: {mounted.stderr.strip()}")
-    try:
-        yield folder
-    finally:
-        subprocess.run(["umount", "-l", str(folder)], check=False)
+    yield from mounted_tmpfs(tmp_path / "petit disque", "256k")
 
 
 def test_a_full_disk_under_the_recording_is_one_line_exit_1_and_keeps_every_complete_batch(tmp_path, small_disk):

@@ -22,7 +22,7 @@ import numpy as np
 import pytest
 
 sys.path.insert(0, str(Path(__file__).parent))
-from hard_stop_helpers import line_count, square_position, write_frames  # noqa: E402
+from hard_stop_helpers import mounted_tmpfs, line_count, square_position, write_frames  # noqa: E402
 
 from vidtrack.eval.datasets import read_boxes  # noqa: E402
 from vidtrack.sinks.h264 import count_frames  # noqa: E402
@@ -274,24 +274,7 @@ def test_a_video_cut_short_keeps_every_tracked_frame_and_warns_once(tmp_path):
 @pytest.fixture
 def small_disk(tmp_path):
     """A 64 KB tmpfs folder (mounted for the test: needs root, as on this project's machines and CI)."""
-    yield from _tmpfs(tmp_path / "small disk", "64k")
-
-
-def _tmpfs(folder: Path, size: str):
-    import os
-    import shutil
-
-    if os.geteuid() != 0 or shutil.which("mount") is None:
-        pytest.skip("mounting a small tmpfs needs root and mount(8)")
-    folder.mkdir()
-    mounted = subprocess.run(["mount", "-t", "tmpfs", "-o", f"size={size}", "tmpfs", str(folder)],
-                             capture_output=True, text=True)
-    if mounted.returncode != 0:
-        pytest.skip(f"cannot mount a tmpfs here: {mounted.stderr.strip()}")
-    try:
-        yield folder
-    finally:
-        subprocess.run(["umount", "-l", str(folder)], check=False)
+    yield from mounted_tmpfs(tmp_path / "small disk", "64k")
 
 
 def test_a_full_disk_while_tracking_is_one_line_exit_1_and_every_file_stays_valid(tmp_path, small_disk):
