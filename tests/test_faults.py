@@ -388,12 +388,12 @@ def test_a_cbt_grid_over_its_memory_budget_is_refused_in_one_line(tmp_path):
     frames = write_frames(tmp_path / "img", 3)
     x, y = square_position(0)
     done = subprocess.run([sys.executable, "-m", "vidtrack", str(frames), "--init-box", f"{x},{y},16,16",
-                           "--filter", "cbt", "--set", "spacing_boxes=0.01", "--set", "min_spacing=0.1",
+                           "--filter", "cbt", "--set", "grid.spacing_boxes=0.01", "--set", "grid.min_spacing=0.1",
                            "--set", "order=3", "-q", "--boxes", str(tmp_path / "b.txt")],
                           cwd=tmp_path, capture_output=True, text=True, timeout=120)
     assert done.returncode == 2 and not (tmp_path / "b.txt").exists()
     assert re.fullmatch(r"vidtrack: error: cbt: a position grid of \d+x\d+ channels of order 3 needs \d+ MB, over "
-                        r"the 512 MB budget; raise spacing_boxes or lower window_boxes or order\n", done.stderr)
+                        r"the 512 MB budget; raise grid.spacing_boxes or lower grid.window_boxes or order\n", done.stderr)
 
 
 def test_opencv_tld_over_its_memory_budget_is_refused_in_one_line(tmp_path):

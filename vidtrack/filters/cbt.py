@@ -170,7 +170,7 @@ class CBTFilter:
         if needed > MEMORY_BUDGET_MB:
             raise UsageError(f"cbt: a position grid of {layouts[0][0]}x{layouts[1][0]} channels of order "
                              f"{self.order} needs {needed:.0f} MB, over the {MEMORY_BUDGET_MB:.0f} MB budget; "
-                             f"raise spacing_boxes or lower window_boxes or order")
+                             f"raise grid.spacing_boxes or lower grid.window_boxes or order")
         self.origin_ = [k for _, k in layouts]
         self.bases_ = tuple(self._basis(n, k) for n, k in layouts)
         if self.model is not None:

@@ -28,6 +28,16 @@ DEFAULT_ORDER = 2
 
 
 @dataclass(frozen=True)
+class GridConfig:
+    """The cos² position channels (:class:`~vidtrack.filters.cbt.CBTFilter`): a window that follows the target."""
+
+    spacing_boxes: float = option(0.2, "spacing of the position channels, box sizes")
+    min_spacing: float = option(2.0, "smallest spacing of the position channels, pixels")
+    window_boxes: float = option(10.0, "side of the position grid that follows the target, box sizes")
+    min_window: float = option(64.0, "smallest side of the position grid, pixels")
+
+
+@dataclass(frozen=True)
 class DetectionsConfig:
     """How a frame's detections are found (:class:`~vidtrack.measure.detections.DetectionMeasurer`)."""
 
@@ -53,10 +63,6 @@ class CBTConfig:
     prior_sigma: float = option(0.12, "random-walk prior: displacement standard deviation, box sizes per frame")
     d_channels: int = option(15, "channels of the displacement model")
     d_range: float = option(0.6, "largest displacement per frame the motion model represents, box sizes")
-    spacing_boxes: float = option(0.2, "spacing of the position channels, box sizes")
-    min_spacing: float = option(2.0, "smallest spacing of the position channels, pixels")
-    window_boxes: float = option(10.0, "side of the position grid that follows the target, box sizes")
-    min_window: float = option(64.0, "smallest side of the position grid, pixels")
     clutter: float = option(0.02, "likelihood floor (clutter and missed detections)")
     score_temperature: float = option(0.05, "temperature of the detection weights exp((score - top) / T)")
     relative_scores: bool = option(True, "weigh detections relative to the frame's best score (false: to 1)")
@@ -65,6 +71,7 @@ class CBTConfig:
     mass_full: float = option(0.5, "posterior mass of the decoded mode that counts as full confidence")
     mode_threshold: float = option(0.05, "mass a posterior mode must hold to count in the 'modes' scalar")
     coast_when_lost: bool = option(True, "forget the learned velocity while the target is lost")
+    grid: GridConfig = option(GridConfig(), "the position channels: their spacing and the window they cover")
     detections: DetectionsConfig = option(DetectionsConfig(), "how a frame's detections are found")
 
 
@@ -75,9 +82,8 @@ def cbt_filter(config: CBTConfig, model: CBTModel | None = None) -> CBTFilter:
     contradicts the model's is a UsageError when the filter starts.
     """
     order = config.order if config.order is not None else (model.order if model is not None else DEFAULT_ORDER)
-    return CBTFilter(order=order, spacing_boxes=config.spacing_boxes, min_spacing=config.min_spacing,
-                     window_boxes=config.window_boxes,
-                     min_window=config.min_window, d_channels=config.d_channels, d_range=config.d_range, prior_sigma=config.prior_sigma,
+    return CBTFilter(order=order, **asdict(config.grid), d_channels=config.d_channels, d_range=config.d_range,
+                     prior_sigma=config.prior_sigma,
                      prior_weight=config.prior_weight, relearn_every=config.relearn_every, clutter=config.clutter,
                      score_temperature=config.score_temperature, product=config.product,
                      learn_online=config.learn_online, lost_below=config.lost_below, mass_full=config.mass_full,
