@@ -69,8 +69,11 @@ def run_and_kill(args: list[str], watch: Path, at_lines: int, *, cwd: Path, time
         process.wait()
 
 
-def mounted_tmpfs(folder: Path, size: str):
+def mounted_tmpfs(folder: Path, size: str, *, read_only: bool = False, exist_ok: bool = False):
     """Yield ``folder`` as a fresh tmpfs of ``size`` (``"64k"``), unmounted afterwards: a disk that fills up.
+
+    ``read_only`` mounts it read-only (a folder nothing can be written into);
+    ``exist_ok`` mounts over an existing empty ``folder``.
 
     Skips the test with a reason unless running as root with mount(8).
     """
@@ -80,8 +83,9 @@ def mounted_tmpfs(folder: Path, size: str):
 
     if os.geteuid() != 0 or shutil.which("mount") is None:
         pytest.skip("mounting a small tmpfs needs root and mount(8)")
-    folder.mkdir()
-    mounted = subprocess.run(["mount", "-t", "tmpfs", "-o", f"size={size}", "tmpfs", str(folder)],
+    folder.mkdir(exist_ok=exist_ok)
+    options = f"size={size}" + (",ro" if read_only else "")
+    mounted = subprocess.run(["mount", "-t", "tmpfs", "-o", options, "tmpfs", str(folder)],
                              capture_output=True, text=True)
     if mounted.returncode != 0:
         pytest.skip(f"cannot mount a tmpfs here: {mounted.stderr.strip()}")

@@ -9,7 +9,6 @@ from __future__ import annotations
 
 import csv
 import os
-import shutil
 import subprocess
 import sys
 import warnings
@@ -112,16 +111,7 @@ def read_only_folder(request, tmp_path):
         yield folder
         folder.chmod(0o755)
         return
-    if not root or shutil.which("mount") is None:
-        pytest.skip("mounting a read-only tmpfs needs root and mount(8); the chmod case covers users")
-    mounted = subprocess.run(["mount", "-t", "tmpfs", "-o", "size=64k,ro", "tmpfs", str(folder)],
-                             capture_output=True, text=True)
-    if mounted.returncode != 0:
-        pytest.skip(f"cannot mount a tmpfs here: {mounted.stderr.strip()}")
-    try:
-        yield folder
-    finally:
-        subprocess.run(["umount", "-l", str(folder)], check=False)
+    yield from mounted_tmpfs(folder, "64k", read_only=True, exist_ok=True)
 
 
 def test_a_read_only_output_folder_is_one_line_and_exit_2(tmp_path, read_only_folder):
