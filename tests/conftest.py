@@ -51,6 +51,12 @@ def moving_target():
 
 
 @pytest.fixture(scope="session")
+def square_frames(tmp_path_factory) -> Path:
+    """A session folder of ``hard_stop_helpers.square_frame`` PNGs, filled on demand by ``write_frames(..., cache=)``."""
+    return tmp_path_factory.mktemp("square-frames")
+
+
+@pytest.fixture(scope="session")
 def sample_init_box() -> str:
     return SAMPLE_GT.read_text().splitlines()[0]
 

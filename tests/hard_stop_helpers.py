@@ -31,13 +31,31 @@ def square_position(index: int, width: int = 96, height: int = 72) -> tuple[int,
             int(round((height - SQUARE) / 2 + 15 * np.sin(angle))))
 
 
-def write_frames(folder: Path, count: int) -> Path:
-    """``count`` PNG frames ``0000.png ...`` in ``folder``."""
+def write_frames(folder: Path, count: int, cache: Path | None = None) -> Path:
+    """``count`` PNG frames ``00000.png ...`` in ``folder``.
+
+    With ``cache`` (the ``square_frames`` fixture's folder), each frame is encoded there once per session and
+    hard-linked into ``folder`` (copied where a link is refused): the same bytes, without encoding thousands
+    of PNGs again in every test.  Frames written this way are shared: never modify them in place.
+    """
+    import shutil
+
     import cv2
 
     folder.mkdir(parents=True, exist_ok=True)
     for index in range(count):
-        cv2.imwrite(str(folder / f"{index:05d}.png"), square_frame(index))
+        name = f"{index:05d}.png"
+        if cache is None:
+            cv2.imwrite(str(folder / name), square_frame(index))
+            continue
+        cached = cache / name
+        if not cached.exists():                      # encoded whole under another name, then renamed
+            cv2.imwrite(str(cache / f"{index:05d}.part.png"), square_frame(index))
+            os.replace(cache / f"{index:05d}.part.png", cached)
+        try:
+            os.link(cached, folder / name)
+        except OSError:
+            shutil.copyfile(cached, folder / name)
     return folder
 
 
