@@ -58,8 +58,8 @@ def _finish(process: subprocess.Popen, timeout: float = 60.0) -> str:
 
 
 @pytest.mark.parametrize("signum,code", [(signal.SIGTERM, 143), (signal.SIGINT, 130), (signal.SIGHUP, 129)])
-def test_a_stopping_signal_finishes_every_output(tmp_path, signum, code):
-    frames = write_frames(tmp_path / "img", 3000)
+def test_a_stopping_signal_finishes_every_output(tmp_path, square_frames, signum, code):
+    frames = write_frames(tmp_path / "img", 3000, square_frames)
     x, y = square_position(0)
     out = {name: tmp_path / name for name in ("b.txt", "log.csv", "out.mp4", "r.rrd")}
     process = _start([str(frames), "--init-box", f"{x},{y},16,16", "--filter", "kalman-cv", "-q",
@@ -87,19 +87,19 @@ def test_a_stopping_signal_finishes_every_output(tmp_path, signum, code):
     assert recorded == list(range(tracked))
 
 
-def _dataset(root: Path) -> Path:
-    """OTB-style sequences of the moving square: ``Alpha`` (40 frames), then ``Beta`` and ``Gamma`` (4000 each)."""
-    for name, count in (("Alpha", 40), ("Beta", 4000), ("Gamma", 4000)):
-        folder = write_frames(root / name / "img", count)
+def _otb(root: Path, counts: dict[str, int], cache: Path) -> Path:
+    """OTB-style sequences of the moving square under ``root``: ``{name: frame count}``, frames from ``cache``."""
+    for name, count in counts.items():
+        folder = write_frames(root / name / "img", count, cache)
         rows = [f"{x + 1},{y + 1},16,16" for x, y in (square_position(i) for i in range(count))]
         (folder.parent / "groundtruth_rect.txt").write_text("\n".join(rows) + "\n")
     return root
 
 
 @pytest.mark.parametrize("jobs", [1, 2])
-def test_sigterm_of_eval_keeps_finished_results_and_ends_its_workers(tmp_path, jobs):
+def test_sigterm_of_eval_keeps_finished_results_and_ends_its_workers(tmp_path, square_frames, jobs):
     psutil = pytest.importorskip("psutil")
-    data = _dataset(tmp_path / "data")
+    data = _otb(tmp_path / "data", {"Alpha": 40, "Beta": 4000, "Gamma": 4000}, square_frames)
     out = tmp_path / "out"
     process = _start(["eval", str(data), "--filter", "kalman-cv", "--no-plots", "--jobs", str(jobs), "-q",
                       "--out", str(out)], tmp_path)
@@ -150,23 +150,25 @@ def test_undecodable_frames_in_a_folder_are_skipped_and_predicted_through(tmp_pa
     data = (broken / "0200.jpg").read_bytes()
     (broken / "0200.jpg").write_bytes(data[: len(data) // 2])                   # a copy cut short
     x, y = square_position(0)
+    started = {name: _start([str(folder), "--init-box", f"{x},{y},16,16", "--filter", "kalman-cv",
+                             "--boxes", str(tmp_path / f"{name}.txt"), "--log", str(tmp_path / f"{name}.csv")],
+                            tmp_path)
+               for name, folder in (("clean", clean), ("broken", broken))}      # the two runs side by side
     runs = {}
-    for name, folder in (("clean", clean), ("broken", broken)):
-        boxes, log = tmp_path / f"{name}.txt", tmp_path / f"{name}.csv"
-        done = subprocess.run([sys.executable, "-m", "vidtrack", str(folder), "--init-box", f"{x},{y},16,16",
-                               "--filter", "kalman-cv", "--boxes", str(boxes), "--log", str(log)],
-                              cwd=tmp_path, capture_output=True, text=True, timeout=300)
-        runs[name] = (done, read_boxes(boxes), log.read_text().splitlines()[1:])
-    done, boxes, log = runs["broken"]
-    assert done.returncode == 0, done.stderr
-    assert "Traceback" not in done.stderr
-    warnings_ = [line for line in done.stderr.splitlines() if "warning" in line]
-    assert len(warnings_) == 2, done.stderr
+    for name, process in started.items():
+        stderr = _finish(process, timeout=300)
+        runs[name] = (process.returncode, stderr, read_boxes(tmp_path / f"{name}.txt"),
+                      (tmp_path / f"{name}.csv").read_text().splitlines()[1:])
+    code, stderr, boxes, log = runs["broken"]
+    assert code == 0, stderr
+    assert "Traceback" not in stderr
+    warnings_ = [line for line in stderr.splitlines() if "warning" in line]
+    assert len(warnings_) == 2, stderr
     assert "0120.jpg" in warnings_[0] and "frame 120 skipped" in warnings_[0]
     assert "0200.jpg" in warnings_[1] and "truncated" in warnings_[1] and "frame 200 skipped" in warnings_[1]
-    assert "2 undecodable skipped" in done.stderr                                # counted in the summary
+    assert "2 undecodable skipped" in stderr                                     # counted in the summary
     assert len(boxes) == 300 and [int(row.split(",")[0]) for row in log] == list(range(300))
-    clean_boxes = runs["clean"][1]
+    clean_boxes = runs["clean"][2]
     assert boxes[:120].tolist() == clean_boxes[:120].tolist()                    # the same run up to the gap
     assert boxes[120].tolist() != clean_boxes[120].tolist()                      # a prediction, not a measurement
     tx, ty = square_position(299)                                                # tracking goes on after the gaps
@@ -194,14 +196,13 @@ def test_eval_predicts_through_an_undecodable_frame_and_records_it(tmp_path):
     clean = tmp_path / "clean"
     shutil.copytree(data, clean)
     (images / "0040.jpg").write_bytes(b"garbage")
-    outs = {}
-    for name, dataset in (("broken", data), ("clean", clean)):
-        outs[name] = tmp_path / f"out-{name}"
-        done = subprocess.run([sys.executable, "-m", "vidtrack", "eval", str(dataset), "--filter", "kalman-cv",
-                               "--no-plots", "-q", "--out", str(outs[name])],
-                              cwd=tmp_path, capture_output=True, text=True, timeout=300)
-        assert done.returncode == 0, done.stderr
-        assert "Traceback" not in done.stderr
+    outs = {name: tmp_path / f"out-{name}" for name in ("broken", "clean")}
+    started = [_start(["eval", str(dataset), "--filter", "kalman-cv", "--no-plots", "-q", "--out", str(outs[name])],
+                      tmp_path) for name, dataset in (("broken", data), ("clean", clean))]   # side by side
+    for process in started:
+        stderr = _finish(process, timeout=300)
+        assert process.returncode == 0, stderr
+        assert "Traceback" not in stderr
     record = json.loads((outs["broken"] / "kalman-cv" / "Square.json").read_text())
     assert [s["row"] for s in record["skipped"]] == [40] and "0040.jpg" in record["skipped"][0]["reason"]
     assert "skipped" not in json.loads((outs["clean"] / "kalman-cv" / "Square.json").read_text())
@@ -277,10 +278,11 @@ def small_disk(tmp_path):
     yield from mounted_tmpfs(tmp_path / "small disk", "64k")
 
 
-def test_a_full_disk_while_tracking_is_one_line_exit_1_and_every_file_stays_valid(tmp_path, small_disk):
+def test_a_full_disk_while_tracking_is_one_line_exit_1_and_every_file_stays_valid(tmp_path, square_frames,
+                                                                                    small_disk):
     import csv
 
-    frames = write_frames(tmp_path / "img", 3000)
+    frames = write_frames(tmp_path / "img", 3000, square_frames)
     x, y = square_position(0)
     out = {name: small_disk / name for name in ("b.txt", "log.csv", "out.mp4")}
     done = subprocess.run([sys.executable, "-m", "vidtrack", str(frames), "--init-box", f"{x},{y},16,16",
@@ -302,12 +304,9 @@ def test_a_full_disk_while_tracking_is_one_line_exit_1_and_every_file_stays_vali
     assert count_frames(out["out.mp4"]) <= written + 1                 # PyAV reads what the video holds
 
 
-def test_a_full_disk_in_eval_keeps_finished_results_and_is_exit_1(tmp_path, small_disk):
-    data = tmp_path / "data"
-    for name, count in (("Alpha", 30), ("Beta", 3000)):
-        folder = write_frames(data / name / "img", count)
-        rows = [f"{x + 1},{y + 1},16,16" for x, y in (square_position(i) for i in range(count))]
-        (folder.parent / "groundtruth_rect.txt").write_text("\n".join(rows) + "\n")
+def test_a_full_disk_in_eval_keeps_finished_results_and_is_exit_1(tmp_path, square_frames, small_disk):
+    # Beta's result and confidence files alone (about 45 bytes a frame) are more than the 64 KB disk holds
+    data = _otb(tmp_path / "data", {"Alpha": 30, "Beta": 1500}, square_frames)
     done = subprocess.run([sys.executable, "-m", "vidtrack", "eval", str(data), "--filter", "kalman-cv",
                            "--no-plots", "-q", "--out", str(small_disk)],
                           cwd=tmp_path, capture_output=True, text=True, timeout=300)
@@ -326,14 +325,14 @@ def _job_processes(psutil, parent) -> list:
     return [child for server in servers for child in server.children()]
 
 
+#: Frames of the job that is killed: a second or more of tracking, so it is still running when killed.
+BETA = 1000
+
+
 @pytest.mark.parametrize("kills", [1, 2])
-def test_a_killed_job_is_run_again_once_then_failed_for_its_sequence_only(tmp_path, kills):
+def test_a_killed_job_is_run_again_once_then_failed_for_its_sequence_only(tmp_path, square_frames, kills):
     psutil = pytest.importorskip("psutil")
-    data = tmp_path / "data"
-    for name, count in (("Alpha", 30), ("Beta", 4000), ("Gamma", 30)):
-        folder = write_frames(data / name / "img", count)
-        rows = [f"{x + 1},{y + 1},16,16" for x, y in (square_position(i) for i in range(count))]
-        (folder.parent / "groundtruth_rect.txt").write_text("\n".join(rows) + "\n")
+    data = _otb(tmp_path / "data", {"Alpha": 30, "Beta": BETA, "Gamma": 30}, square_frames)
     out = tmp_path / "out"
     process = _start(["eval", str(data), "--filter", "kalman-cv", "--no-plots", "--jobs", "1", "--out", str(out)],
                      tmp_path)
@@ -353,7 +352,7 @@ def test_a_killed_job_is_run_again_once_then_failed_for_its_sequence_only(tmp_pa
     assert summary
     if kills == 1:                                                    # run again, and this time it finished
         assert process.returncode == 0, stderr
-        assert len(read_boxes(out / "kalman-cv" / "Beta.txt")) == 4000
+        assert len(read_boxes(out / "kalman-cv" / "Beta.txt")) == BETA
     else:
         assert process.returncode == 1, stderr
         failed = [line for line in stderr.splitlines() if "FAILED" in line]
@@ -363,13 +362,13 @@ def test_a_killed_job_is_run_again_once_then_failed_for_its_sequence_only(tmp_pa
         assert not (out / "kalman-cv" / "Beta.json").exists()
 
 
-def test_two_evals_on_one_folder_leave_whole_results(tmp_path):
-    data = tmp_path / "data"
+#: Frames of each sequence the two evaluations write at the same time.
+FRAMES = 100
+
+
+def test_two_evals_on_one_folder_leave_whole_results(tmp_path, square_frames):
     names = ("Alpha", "Beta", "Gamma")
-    for name in names:
-        folder = write_frames(data / name / "img", 300)
-        rows = [f"{x + 1},{y + 1},16,16" for x, y in (square_position(i) for i in range(300))]
-        (folder.parent / "groundtruth_rect.txt").write_text("\n".join(rows) + "\n")
+    data = _otb(tmp_path / "data", dict.fromkeys(names, FRAMES), square_frames)
     out = tmp_path / "out"
     command = ["eval", str(data), "--filter", "kalman-cv,ms", "--no-plots", "-q", "--force", "--out", str(out)]
     first, second = _start(command, tmp_path), _start(command, tmp_path)   # both write every result
@@ -379,13 +378,13 @@ def test_two_evals_on_one_folder_leave_whole_results(tmp_path):
         assert "Traceback" not in stderr, stderr
     for tracker in ("kalman-cv", "ms"):
         for name in names:
-            assert len(read_boxes(out / tracker / f"{name}.txt")) == 300
+            assert len(read_boxes(out / tracker / f"{name}.txt")) == FRAMES
             assert json.loads((out / tracker / f"{name}.json").read_text())["sequence"] == name
     assert not list(out.rglob("*.part"))
 
 
-def test_a_cbt_grid_over_its_memory_budget_is_refused_in_one_line(tmp_path):
-    frames = write_frames(tmp_path / "img", 3)
+def test_a_cbt_grid_over_its_memory_budget_is_refused_in_one_line(tmp_path, square_frames):
+    frames = write_frames(tmp_path / "img", 3, square_frames)
     x, y = square_position(0)
     done = subprocess.run([sys.executable, "-m", "vidtrack", str(frames), "--init-box", f"{x},{y},16,16",
                            "--filter", "cbt", "--set", "grid.spacing_boxes=0.01", "--set", "grid.min_spacing=0.1",
