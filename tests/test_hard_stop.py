@@ -23,8 +23,8 @@ from vidtrack.sinks.h264 import count_frames  # noqa: E402
 FLUSH = 10
 
 
-def test_kill_9_keeps_boxes_log_video_and_recording(tmp_path):
-    frames = write_frames(tmp_path / "img", 2500)
+def test_kill_9_keeps_boxes_log_video_and_recording(tmp_path, square_frames):
+    frames = write_frames(tmp_path / "img", 2500, square_frames)
     x, y = square_position(0)
     out = {name: tmp_path / name for name in ("boxes.txt", "log.csv", "video.mp4", "rec.rrd")}
     run_and_kill([str(frames), "--init-box", f"{x},{y},16,16", "--filter", "kalman-cv", "-q",
@@ -47,10 +47,14 @@ def test_kill_9_keeps_boxes_log_video_and_recording(tmp_path):
     assert 0 <= len(boxes) - len(recorded) <= FLUSH + 1, (len(boxes), len(recorded))
 
 
-def _dataset(root: Path) -> Path:
-    """Two OTB-style sequences of the moving square: ``Alpha`` (60 frames), then ``Beta`` (1500)."""
-    for name, count in (("Alpha", 60), ("Beta", 1500)):
-        folder = write_frames(root / name / "img", count)
+#: Frames of ``Beta``, the sequence being tracked when the evaluation is killed: a second or more of tracking.
+BETA = 500
+
+
+def _dataset(root: Path, cache: Path) -> Path:
+    """Two OTB-style sequences of the moving square: ``Alpha`` (60 frames), then ``Beta`` (``BETA``)."""
+    for name, count in (("Alpha", 60), ("Beta", BETA)):
+        folder = write_frames(root / name / "img", count, cache)
         rows = [f"{x + 1},{y + 1},16,16" for x, y in (square_position(i) for i in range(count))]
         (folder.parent / "groundtruth_rect.txt").write_text("\n".join(rows) + "\n")
     return root
@@ -69,8 +73,8 @@ def _summary(out: Path) -> dict:
     return strip(summary)
 
 
-def test_kill_9_of_eval_then_again_equals_an_uninterrupted_run(tmp_path):
-    data = _dataset(tmp_path / "data")
+def test_kill_9_of_eval_then_again_equals_an_uninterrupted_run(tmp_path, square_frames):
+    data = _dataset(tmp_path / "data", square_frames)
     command = [str(data), "--filter", "kalman-cv", "--no-plots", "--jobs", "1"]
     killed = tmp_path / "killed"
     # jobs run in sequence order: once Alpha's record exists, Beta is being tracked: kill it there
@@ -80,13 +84,16 @@ def test_kill_9_of_eval_then_again_equals_an_uninterrupted_run(tmp_path):
     # a result cut short without its record (as a writer killed half-way would leave it) is not reused
     (killed / "kalman-cv" / "Beta.txt").write_text("1,1,16,16\n" * 10)
     (killed / "kalman-cv" / "Beta.txt.part").write_text("1,1,16")
-    again = subprocess.run([sys.executable, "-m", "vidtrack", "eval", *command, "--out", str(killed)],
-                           cwd=tmp_path, capture_output=True, text=True, timeout=300)
-    assert again.returncode == 0, again.stderr
-    assert "Alpha: reused" in again.stderr and "Beta: reused" not in again.stderr
+    # run again, and beside it (into a folder of its own) the uninterrupted run
     full = tmp_path / "full"
-    subprocess.run([sys.executable, "-m", "vidtrack", "eval", *command, "-q", "--out", str(full)],
-                   cwd=tmp_path, check=True, capture_output=True, timeout=300)
+    started = [subprocess.Popen([sys.executable, "-m", "vidtrack", "eval", *command, *quiet, "--out", str(folder)],
+                                cwd=tmp_path, stdin=subprocess.DEVNULL, stdout=subprocess.PIPE,
+                                stderr=subprocess.PIPE, text=True)
+               for quiet, folder in (([], killed), (["-q"], full))]
+    (_, again), (_, uninterrupted) = (process.communicate(timeout=300) for process in started)
+    assert started[0].returncode == 0, again
+    assert "Alpha: reused" in again and "Beta: reused" not in again
+    assert started[1].returncode == 0, uninterrupted
     assert _summary(killed) == _summary(full)
     for name in ("Alpha", "Beta"):
         assert (killed / "kalman-cv" / f"{name}.txt").read_text() == (full / "kalman-cv" / f"{name}.txt").read_text()
