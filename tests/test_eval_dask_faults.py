@@ -31,9 +31,9 @@ psutil = pytest.importorskip("psutil")
 LONG = 4000
 
 
-def _dataset(root: Path) -> Path:
+def _dataset(root: Path, cache: Path) -> Path:
     for name, count in (("Alpha", 20), ("Beta", LONG), ("Gamma", 20)):
-        folder = write_frames(root / name / "img", count)
+        folder = write_frames(root / name / "img", count, cache)
         rows = [f"{x + 1},{y + 1},16,16" for x, y in (square_position(i) for i in range(count))]
         (folder.parent / "groundtruth_rect.txt").write_text("\n".join(rows) + "\n")
     return root
@@ -59,9 +59,8 @@ def cluster(request, tmp_path):
                                    "--no-dashboard", "--scheduler-file", str(address_file)],
                                   stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, start_new_session=True)]
     try:
-        _wait(address_file.exists, "the scheduler")
         nanny = ["--nanny"] if "nanny" in request.param else ["--no-nanny"]
-        for _ in range(2):
+        for _ in range(2):   # started beside the scheduler: a worker waits for the scheduler file
             processes.append(subprocess.Popen([*python, "distributed.cli.dask_worker", "--scheduler-file",
                                                str(address_file), "--nthreads", "1", "--no-dashboard",
                                                "--host", "127.0.0.1", *nanny],
@@ -98,9 +97,9 @@ def _writing(path: Path, workers: list[int]):
     return None
 
 
-def test_a_lost_workers_job_is_run_again_on_another_worker(tmp_path, cluster):
+def test_a_lost_workers_job_is_run_again_on_another_worker(tmp_path, square_frames, cluster):
     address, workers = cluster
-    data = _dataset(tmp_path / "data")
+    data = _dataset(tmp_path / "data", square_frames)
     out, recordings = tmp_path / "out", tmp_path / "rerun"
     evaluation = subprocess.Popen([sys.executable, "-m", "vidtrack", "eval", str(data), "--filter", "kalman-cv",
                                    "--no-plots", "-q", "--out", str(out), "--rerun", str(recordings),

@@ -144,12 +144,13 @@ def small_disk(tmp_path):
     yield from mounted_tmpfs(tmp_path / "petit disque", "256k")
 
 
-def test_a_full_disk_under_the_recording_is_one_line_exit_1_and_keeps_every_complete_batch(tmp_path, small_disk):
+def test_a_full_disk_under_the_recording_is_one_line_exit_1_and_keeps_every_complete_batch(tmp_path, square_frames,
+                                                                                            small_disk):
     import re
 
     from rerun_reader import read_recording
 
-    source = write_frames(tmp_path / "img", 2000)
+    source = write_frames(tmp_path / "img", 2000, square_frames)
     recording, boxes = small_disk / "r é.rrd", tmp_path / "b.txt"
     process = _start(_track_args(source) + ["--flush-every", "10", "--rerun", str(recording), "--boxes", str(boxes)],
                      tmp_path)
