@@ -74,20 +74,20 @@ def workspace(root: Path, sequence) -> Path:
     return root
 
 
-READ_TRAJECTORY = """
+READ_TRAJECTORIES = """
 import json, sys
 from vot.region import Special
 from vot.region.io import read_trajectory
-print(json.dumps([None if isinstance(r, Special) else [r.x, r.y, r.width, r.height]
-                  for r in read_trajectory(sys.argv[1])]))
+print(json.dumps([[None if isinstance(r, Special) else [r.x, r.y, r.width, r.height] for r in read_trajectory(path)]
+                  for path in sys.argv[1:]]))
 """
 
 
-def toolkit_boxes(path: Path) -> list:
-    """The toolkit's own reading of a result trajectory (its venv's Python): None for special rows."""
+def toolkit_boxes(paths: list[Path]) -> list[list]:
+    """The toolkit's own reading of result trajectories (its venv's Python, one process): None for special rows."""
     python = Path(VOT).parent / "python"
-    result = subprocess.run([str(python), "-c", READ_TRAJECTORY, str(path)], capture_output=True, text=True,
-                            timeout=120, check=True)
+    result = subprocess.run([str(python), "-c", READ_TRAJECTORIES, *map(str, paths)], capture_output=True,
+                            text=True, timeout=120, check=True)
     return json.loads(result.stdout)
 
 
@@ -105,15 +105,25 @@ def test_vot_toolkit_accuracy_equals_vidtrack_mean_iou(tmp_path):
     root = workspace(tmp_path / "workspace", sequence)
     trackers = [f"vidtrack-{name}" for name in FILTERS]
 
-    evaluated = vot("evaluate", "--workspace", str(root), *trackers, cwd=tmp_path)
-    assert evaluated.returncode == 0, evaluated.stdout + evaluated.stderr
-    for tracker in trackers:   # the toolkit exits 0 after a tracker failed too: look at what it wrote
-        run = root / "results" / tracker / "baseline" / SEQUENCE
-        assert (run / f"{SEQUENCE}_001.bin").is_file(), evaluated.stdout + evaluated.stderr
+    evaluating = subprocess.Popen([VOT, "evaluate", "--workspace", str(root), *trackers], cwd=tmp_path,
+                                  stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, stdin=subprocess.DEVNULL)
+    try:   # vidtrack eval of the same sequence meanwhile, in this process
+        assert main(["eval", str(SEQUENCES), "--filter", ",".join(FILTERS), "--sequences", SEQUENCE,
+                     "--out", str(tmp_path / "eval"), "--no-plots", "-q"]) == 0
+        output = "".join(evaluating.communicate(timeout=600))
+    finally:
+        if evaluating.poll() is None:
+            evaluating.kill()
+            evaluating.communicate()
+    assert evaluating.returncode == 0, output
+    runs = [root / "results" / tracker / "baseline" / SEQUENCE for tracker in trackers]
+    for run in runs:   # the toolkit exits 0 after a tracker failed too: look at what it wrote
+        assert (run / f"{SEQUENCE}_001.bin").is_file(), output
         confidence = (run / f"{SEQUENCE}_001_confidence.value").read_text().split()
         assert len(confidence) == len(sequence) and float(confidence[0]) == 1.0
         assert all(0.0 <= float(c) <= 1.0 for c in confidence)
-        boxes = toolkit_boxes(run / f"{SEQUENCE}_001.bin")
+    served = dict(zip(FILTERS, toolkit_boxes([run / f"{SEQUENCE}_001.bin" for run in runs])))
+    for boxes in served.values():
         assert len(boxes) == len(sequence) and boxes[0] is None and None not in boxes[1:]   # frame 0: "initialised"
 
     analysed = vot("analysis", "--workspace", str(root), "--format", "json", "--name", "check", *trackers,
@@ -125,14 +135,11 @@ def test_vot_toolkit_accuracy_equals_vidtrack_mean_iou(tmp_path):
 
     truth = np.array([sequence.to_pixels(sequence.ground_truth_box(row)).as_array() for row in range(len(sequence))])
     rows = []
-    for name, tracker in zip(FILTERS, trackers):
-        assert main(["eval", str(SEQUENCES), "--filter", name, "--sequences", SEQUENCE,
-                     "--out", str(tmp_path / "eval"), "--no-plots", "-q"]) == 0
+    for name in FILTERS:
         boxes = np.array([sequence.to_pixels(Box(*row)).as_array()
                           for row in read_boxes(tmp_path / "eval" / name / f"{SEQUENCE}.txt")])
         # the same boxes went through TraX (float32) as eval wrote (3 decimals) ...
-        served = np.array(toolkit_boxes(root / "results" / tracker / "baseline" / SEQUENCE / f"{SEQUENCE}_001.bin")[1:])
-        np.testing.assert_allclose(served, boxes[1:], atol=2e-3)
+        np.testing.assert_allclose(np.array(served[name][1:]), boxes[1:], atol=2e-3)
         # ... so the scores differ only by the toolkit's rasterised overlap (burn-in 1 skips the init frame)
         ours = float(iou(boxes, truth)[1:].mean())
         rows.append(f"| {name:<9} | {SEQUENCE} | {toolkit[name]:>19.4f} | {ours:>17.4f} |")
