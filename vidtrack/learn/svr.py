@@ -36,10 +36,6 @@ from dataclasses import dataclass
 from functools import lru_cache
 
 import numpy as np
-import sklearn
-from sklearn.exceptions import ConvergenceWarning
-from sklearn.model_selection import KFold
-from sklearn.svm import LinearSVR
 
 #: Ranges at or below this (relative to the data's magnitude) count as constant.
 _TINY = 1e-12
@@ -92,6 +88,8 @@ def window_scaling(X: np.ndarray, y: np.ndarray) -> WindowScaling:
 def _folds(n_samples: int, n_folds: int) -> tuple[tuple[np.ndarray, np.ndarray], ...]:
     """Contiguous k-fold (train, test) index pairs, cached per window size."""
     k = int(min(max(n_folds, 2), n_samples))
+    from sklearn.model_selection import KFold   # loaded on first use, as in fit_svr
+
     return tuple(KFold(n_splits=k).split(np.zeros((n_samples, 1))))
 
 
@@ -105,6 +103,10 @@ def fit_linear_svr(X: np.ndarray, y: np.ndarray, *, C: float, epsilon: float,
     matters here).  liblinear's coordinate order is seeded, so the result is
     deterministic.
     """
+    import sklearn   # loaded when an SVR is first trained, not with every vidtrack command
+    from sklearn.exceptions import ConvergenceWarning
+    from sklearn.svm import LinearSVR
+
     model = LinearSVR(C=C, epsilon=epsilon, fit_intercept=False, loss="epsilon_insensitive",
                       dual=True, max_iter=max_iter, tol=tol, random_state=0)
     with warnings.catch_warnings(), sklearn.config_context(assume_finite=True, skip_parameter_validation=True):
