@@ -101,8 +101,8 @@ def child(name: str, case: str, frames: int, boxes: str) -> dict:
     stream = SyntheticStream(width, height, side, frames)
     at_checkpoint: list[float] = []
 
-    def on_state(state) -> None:
-        if state.index + 1 == min(CHECKPOINT, frames):
+    def on_frame(frame, states) -> None:
+        if frame.index + 1 == min(CHECKPOINT, frames):
             at_checkpoint.append(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024)
 
     times: list[float] = []
@@ -118,7 +118,7 @@ def child(name: str, case: str, frames: int, boxes: str) -> dict:
 
         tracker.step = timed_step
         result = run_tracker(tracker, stream, Box(*map(float, stream.box(0))), [BoxesSink(boxes)],
-                             on_state=on_state)
+                             on_frame=on_frame)
     except VidtrackError as exc:
         return {"refused": str(exc)}
     end = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
@@ -160,7 +160,8 @@ def main(argv: list[str] | None = None) -> int:
     print(f"frames per case: {args.frames} (long: {args.long_frames}); peak RSS in MB, tracker ms per frame (median)")
     cols = []
     for case in cases:
-        cols += [f"{case} MB", f"{case} ms"] if case != "long" else ["long MB @1000", "long MB end"]
+        cols += [f"{case} MB", f"{case} ms"] if case != "long" else ["long MB @1000", "long MB end", "long end/@1000",
+                                                                      "long ms"]
     print("| tracker | " + " | ".join(cols) + " | 4k/vga ms | checks |")
     print("|---|" + "---:|" * (len(cols) + 1) + "---|")
     failures = 0
@@ -171,12 +172,13 @@ def main(argv: list[str] | None = None) -> int:
             for case in cases:
                 r = got[case]
                 if "refused" in r or "failed" in r:
-                    cells += ["refused" if "refused" in r else "failed", "-"]
+                    cells += ["refused" if "refused" in r else "failed"] + ["-"] * (3 if case == "long" else 1)
                     problems.append(f"{case}: {r.get('refused') or r.get('failed')}")
                     continue
                 if case == "long":
-                    cells += [f"{r['rss_checkpoint']:.0f}", f"{r['rss_end']:.0f}"]
-                    if r["rss_end"] > GROWTH_LIMIT * r["rss_checkpoint"]:
+                    growth = r["rss_end"] / r["rss_checkpoint"]
+                    cells += [f"{r['rss_checkpoint']:.0f}", f"{r['rss_end']:.0f}", f"{growth:.3f}", f"{r['ms']:.2f}"]
+                    if growth > GROWTH_LIMIT:
                         problems.append("long: RSS grew > 10 %")
                 else:
                     cells += [f"{r['rss_end']:.0f}", f"{r['ms']:.1f}"]
