@@ -5,7 +5,10 @@ Each tracker runs in a fresh process through the real run loop
 (:func:`vidtrack.run.run_tracker`, with a ``--boxes`` sink) on frames
 generated on the fly: a textured target the size of the box moving on an
 ellipse (1.5 box sizes wide, one high, one turn every 120 frames) over a
-smooth textured background, so no video has to be stored.  The cases:
+smooth textured background, so no video has to be stored.  Every case's
+frame is the centre of one 3840x2160 world: around the target the frames of
+all cases hold the same pixels, so a tracker does the same thing on each and
+the time per frame differs only by the work that follows the frame.  The cases:
 
 =========  ===========  =========  ===============================================
 case       frame        box        what it checks
@@ -51,12 +54,21 @@ GROWTH_LIMIT = 1.10
 SLOWDOWN_LIMIT = 1.5
 
 
+#: The generated world every case's frame is cut from, centred: the target's surroundings are the same
+#: pixels in every case, so the time per frame of two cases with one box size differs only by the frame.
+WORLD = (3840, 2160)
+CELL = 24   # pixels per cell of the background's coarse noise
+
+
 class SyntheticStream:
     """Frames ``(H, W, 3) uint8`` with a textured ``side x side`` target moving on an ellipse.
 
-    The background is smooth noise (low-resolution noise resized up) over a
-    horizontal gradient; the target a fixed finer texture in other colours.
-    ``box(index)`` is the target's true box ``(x, y, w, h)``.
+    The background is the centre ``W x H`` of one 3840x2160 world (smooth
+    noise, low-resolution noise resized up, over a horizontal gradient), so
+    a 640x480 frame holds the same pixels as the middle of a 3840x2160 one;
+    only the part a frame shows is generated.  The target is a fixed finer
+    texture in other colours.  ``box(index)`` is the target's true box
+    ``(x, y, w, h)``.
     """
 
     def __init__(self, width: int, height: int, side: int, frames: int, *, seed: int = 0) -> None:
@@ -64,9 +76,21 @@ class SyntheticStream:
 
         rng = np.random.default_rng(seed)
         self.width, self.height, self.side, self.frames = width, height, side, frames
-        coarse = rng.integers(0, 256, (max(2, height // 24), max(2, width // 24), 3), dtype=np.uint8)
-        smooth = cv2.resize(coarse, (width, height), interpolation=cv2.INTER_CUBIC).astype(np.int16)
-        ramp = np.linspace(-30, 30, width).astype(np.int16)[None, :, None]
+        world_w, world_h = WORLD
+        if width > world_w or height > world_h:
+            raise ValueError(f"frames up to {world_w}x{world_h}")
+        coarse = rng.integers(0, 256, (world_h // CELL, world_w // CELL, 3), dtype=np.uint8)
+        left, top = (world_w - width) // 2, (world_h - height) // 2
+        # the cells under the frame and 3 more a side (the cubic kernel's reach): the same pixels as the
+        # whole world resized, cut to the frame
+        c0, r0 = max(left // CELL - 3, 0), max(top // CELL - 3, 0)
+        c1, r1 = min(-(-(left + width) // CELL) + 3, world_w // CELL), min(-(-(top + height) // CELL) + 3,
+                                                                            world_h // CELL)
+        cells = coarse[r0:r1, c0:c1]
+        smooth = cv2.resize(cells, (cells.shape[1] * CELL, cells.shape[0] * CELL), interpolation=cv2.INTER_CUBIC)
+        x0, y0 = left - c0 * CELL, top - r0 * CELL
+        smooth = smooth[y0:y0 + height, x0:x0 + width].astype(np.int16)
+        ramp = np.linspace(-30, 30, world_w).astype(np.int16)[left:left + width][None, :, None]
         self.background = np.clip(smooth // 2 + 64 + ramp, 0, 255).astype(np.uint8)
         cells = max(2, side // 3)
         pattern = rng.integers(0, 256, (cells, cells, 3), dtype=np.uint8)
