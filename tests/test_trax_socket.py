@@ -138,6 +138,32 @@ def test_socket_client_gone_mid_run_is_one_line_and_exit_1(sequence, tmp_path):
     assert log[0].startswith("@@TRAX:hello ") and sum(line.startswith("@@TRAX:state ") for line in log) == 4
 
 
+@pytest.mark.parametrize("cut", ["after a frame", "mid-message"])
+def test_socket_closed_by_a_raw_client_is_one_line_and_exit_1(tmp_path, cut):
+    """The client's socket closes while the server computes a reply, or in the middle of a message."""
+    import cv2
+
+    image = tmp_path / "frame.png"
+    cv2.imwrite(str(image), np.full((60, 80, 3), 90, np.uint8))
+    message = f'@@TRAX:initialize "10,10,20,20" \n@@TRAX:frame "file://{image}" \n'.encode()
+    with socket.socket(socket.AF_INET, socket.SOCK_STREAM) as listener:
+        listener.bind(("127.0.0.1", 0))
+        listener.listen(1)
+        listener.settimeout(60)
+        env = dict(os.environ, TRAX_SOCKET=str(listener.getsockname()[1]))
+        server = subprocess.Popen([sys.executable, "-m", "vidtrack", "trax", "--filter", "kalman-cv"], env=env,
+                                  stdin=subprocess.DEVNULL, stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+        connection, _ = listener.accept()
+        with connection:
+            assert connection.recv(7) == b"@@TRAX:"
+            connection.sendall(message if cut == "after a frame" else message[:40])
+    code = wait_for(server)
+    frames = "1 frame" if cut == "after a frame" else "0 frames"
+    assert server.stderr.read().decode().splitlines() == [
+        f"vidtrack: error: TraX client disconnected after {frames} without quitting"]
+    assert code == 1 and server.stdout.read() == b""
+
+
 MALFORMED = b'@@TRAX:initialize "1,2,3" \n@@TRAX:frame "file:///nowhere.png" \n'
 
 
