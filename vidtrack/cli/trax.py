@@ -1,9 +1,10 @@
 """``vidtrack trax``: any vidtrack tracker as a TraX server, for the VOT toolkit and other TraX clients.
 
 TraX (the protocol the VOT toolkit drives trackers with) runs over the
-process's stdin/stdout (the toolkit's default, and what the tests use), or
-over a local socket when the client sets ``TRAX_SOCKET``; the reference
-implementation, PyPI's ``vot-trax``, handles both.  The server answers
+process's stdin/stdout (the toolkit's default), or over a local socket when
+the client listens on 127.0.0.1 and names its port in ``TRAX_SOCKET`` (then
+nothing is written to stdout); the reference implementation, PyPI's
+``vot-trax``, handles both, with the same answers.  The server answers
 
 * ``INITIALIZE`` (image + rectangle): builds a fresh tracker (``--filter``,
   ``--seed``, the tracker options ``--config``, ``--set`` ...) and starts it on
@@ -43,6 +44,7 @@ from typing import Any, Sequence
 import numpy as np
 
 from ..errors import SourceError, UsageError, VidtrackError
+from ..sinks.base import open_text_output
 from .common import EXIT_FAILED, EXIT_OK, OneLineParser, error_line, add_filter_argument, add_settings_arguments, default_filter, \
     tracker_settings
 
@@ -287,27 +289,60 @@ def main(argv: Sequence[str]) -> int:
         cv2.setRNGSeed(args.seed)
         return create(name, seed=args.seed, settings=settings)
 
+    log = False
+    if args.trax_log:   # an unwritable log: one line, exit 2, before any protocol
+        open_text_output(args.trax_log).close()
+        log = os.path.abspath(args.trax_log)   # vot-trax creates the log's folder from its name: never ""
     relay = None if os.environ.get("TRAX_SOCKET") else MessageRelay()
     try:
         server = Server([Region.RECTANGLE], [Image.PATH, Image.MEMORY], tracker_name=f"vidtrack-{name}",
-                        tracker_description=f"vidtrack {name}", tracker_family="vidtrack",
-                        log=args.trax_log or False)
+                        tracker_description=f"vidtrack {name}", tracker_family="vidtrack", log=log)
     except TraxException as exc:
         raise UsageError(f"cannot start the TraX server: {exc}") from None
-    session = Session()
-    if relay is not None:
-        session.output_closed = relay.output_closed
     try:
-        frames = serve(server, make_tracker, session)
+        return session(server, make_tracker, relay)
+    finally:
+        release(server)
+
+
+def session(server: Any, make_tracker, relay: MessageRelay | None) -> int:
+    """Serve one client on ``server`` until it quits or fails; the exit code (or the error to report)."""
+    from trax import TraxException
+
+    tracked = Session()
+    if relay is not None:
+        tracked.output_closed = relay.output_closed
+    try:
+        frames = serve(server, make_tracker, tracked)
     except VidtrackError as exc:   # tell the client why, then the CLI's one line and exit 2
         server.quit(reason=str(exc))
         raise
     except (TraxException, ClientGone) as exc:   # the client went away or broke the protocol
-        return connection_failed(exc, relay, session.frames)
+        return connection_failed(exc, relay, tracked.frames)
     server.quit()
     if relay is not None and relay.disconnected:   # the quit was the relay's: the client went away
         return disconnected(relay, frames)
     return EXIT_OK
+
+
+def release(server: Any) -> None:
+    """Free libtrax's handle of ``server`` now, while its log callback still lives; then the callback.
+
+    libtrax logs while it cleans a handle up (it sends the client a last
+    ``quit`` when the session did not end with one).  vot-trax's ``Server``
+    holds the log callback (``_logger``: with ``--trax-log`` a file logger)
+    and the handle (``_handle``) as attributes set in that order, and frees
+    the handle only when the server object is collected: after a failed
+    session that is at interpreter exit, when the callback (or the module it
+    calls into) is gone already, and libtrax's last log message crashes the
+    process.  Freeing the handle here, then the callback (which closes the
+    log file), makes the order right whatever keeps ``server`` alive.
+    """
+    attributes = vars(server)
+    handle = attributes.pop("_handle", None)
+    del handle   # the handle's finalizer (libtrax's trax_cleanup) runs here, logging through the callback
+    callback = attributes.pop("_logger", None)
+    del callback
 
 
 def disconnected(relay: MessageRelay | None, frames: int) -> int:
