@@ -68,6 +68,15 @@ CUES = (
     ("cue_agreement", 1.0, 0.0, 2.0),
 )
 
+#: Occlusion reasoning (:meth:`MILKalmanFilter._occlusion`): a frame is wholly visible when its inlier coverage
+#: reaches this fraction of the running level
+VISIBLE_ABOVE = 0.9
+#: Weight of the past in the running levels of the inlier coverage and of the innovation's length
+COVERAGE_MEMORY = 0.9
+#: Occlusions are reasoned about only while the running innovation length (Mahalanobis) is below this: the
+#: motion is then predictable enough for the prediction to carry the box
+OCCLUSION_MOTION = 0.4
+
 # ------------------------------------------------------------------ the filter
 
 
@@ -89,6 +98,14 @@ class KalmanConfig:
                                                            "size")
     size_damping: float = option(0.9, "factor on the size velocities at every prediction (1: the paper's "
                                       "constant rate)")
+    occlusion_below: float | None = option(0.5, "a measurement whose inlier coverage falls below this fraction of "
+                                                "its running level (the target partly hidden) is not used: the box "
+                                                "is predicted from the last wholly visible frame at constant "
+                                                "velocity and nothing is learned (none: no occlusion reasoning)")
+    occlusion_frames: int = option(10, "frames an occlusion may last: then measurements are used again whatever "
+                                       "their coverage, and the velocities decay by coast_damping")
+    occlusion_onset: int = option(8, "an occlusion is a coverage fall from a wholly visible frame within this many "
+                                     "frames (a slower fall is a change of appearance)")
     confidence: str | None = option("mil", "calibrated confidence: the cues mapped to P(IoU > 0.5) by "
                                            "vidtrack/filters/calibration/<name>.json, lost below its threshold "
                                            "(none: the measurement's quality, lost when not measured)")
@@ -119,6 +136,11 @@ class MILKalmanFilter:
         c = self.config
         self.calibration_ = None if c.confidence is None else load_calibration(c.confidence)
         self.unmeasured_run_ = 0
+        self.coverage_level_: float | None = None
+        self.occluded_run_ = 0
+        self.visible_: tuple[np.ndarray, np.ndarray] | None = None
+        self.motion_level_: float | None = None
+        self.since_visible_ = 0
         self.scale_ = box.scale
         self.F_, self.Q_, self.C_ = mil_motion_model(self.scale_, q_centre=c.q_centre, q_size=c.q_size)
         self.x_ = state_from_box(box)
@@ -152,6 +174,55 @@ class MILKalmanFilter:
 
     def _coast(self) -> None:
         self.x_[[1, 3, 5, 7]] *= self.config.coast_damping
+
+    def _occlusion(self, coverage: float | None) -> bool:
+        """Whether this frame is taken for a partial occlusion (its measurement then unused).
+
+        Occlusion reasoning from the paper's inlier set ``O(t)`` (Wnuk &
+        Soatto, sec. 1.2): an occluder hides part of the target, so the graph
+        cut finds inliers on a shrinking share of the box, and their centroid
+        (and the correlation peak on the visible part) lag behind the target.
+        When a usable measurement's coverage falls below ``occlusion_below``
+        of its running level, the frames measured since the last wholly
+        visible one were already pulled back: the state returns to that frame
+        and is predicted forward at constant velocity.  Then, for up to
+        ``occlusion_frames`` frames, the prediction carries the box.
+        """
+        c = self.config
+        self.since_visible_ += 1
+        hidden = coverage is not None and self.coverage_level_ is not None and c.occlusion_below is not None \
+            and coverage < c.occlusion_below * self.coverage_level_
+        if self.occluded_run_:
+            self.occluded_run_ += 1
+            if self.occluded_run_ <= c.occlusion_frames and (coverage is None or hidden):
+                return True
+            self.occluded_run_ = 0
+            return False
+        if (coverage is None or c.occlusion_below is None or self.visible_ is None
+                or coverage >= c.occlusion_below * self.coverage_level_
+                or self.motion_level_ is None or self.motion_level_ >= OCCLUSION_MOTION
+                or self.since_visible_ > c.occlusion_onset):
+            return False
+        x, P = self.visible_
+        for _ in range(self.since_visible_):
+            x, P = kf_predict(x, P, self.F_, self.Q_)
+            x[[5, 7]] *= c.size_damping
+        self.x_, self.P_ = x, P
+        self._clamp()
+        self.visible_ = None   # the next occlusion begins after a wholly visible frame
+        self.occluded_run_ = 1
+        return True
+
+    def _remember_visible(self, coverage: float | None) -> None:
+        """Keep the running coverage level and the state of the last wholly visible frame."""
+        if coverage is None:
+            return
+        level = self.coverage_level_
+        if level is None or coverage >= VISIBLE_ABOVE * level:
+            self.visible_ = (self.x_.copy(), self.P_.copy())
+            self.since_visible_ = 0
+        m = COVERAGE_MEMORY
+        self.coverage_level_ = coverage if level is None else m * level + (1.0 - m) * coverage
 
     def measurement_noise(self, quality: float) -> np.ndarray:
         """``R`` at measurement ``quality``: ``diag(r_c, r_c, r_d, r_d)^2 s^2 / quality``."""
@@ -190,7 +261,10 @@ class MILKalmanFilter:
         status = LOST
         if box is not None:
             scalars["scale_change"] = float(abs(np.log(max(box.area, 1e-6) / max(prior_box.area, 1e-6))))
-        if box is not None and quality >= self.config.lost_below:
+        usable = box is not None and quality >= self.config.lost_below
+        occluded = self._occlusion(scalars.get("inlier_coverage") if usable else None)
+        scalars["occluded"] = float(occluded)
+        if usable and not occluded:
             z = np.array([*box.center, box.w, box.h])
             R = self.measurement_noise(quality)
             y = z[:2] - self.x_[[0, 2]]
@@ -208,7 +282,11 @@ class MILKalmanFilter:
         scalars["coast"] = float(np.log1p(self.unmeasured_run_))
         present = bool(getattr(measurement, "present", False))
         scalars["present"] = float(present)
-        if status == LOST:
+        if status == TRACKING:
+            self._remember_visible(scalars.get("inlier_coverage"))
+            m, level = COVERAGE_MEMORY, self.motion_level_
+            self.motion_level_ = scalars["motion"] if level is None else m * level + (1.0 - m) * scalars["motion"]
+        if status == LOST and not occluded:
             self._coast()
             quality = min(quality, self.config.lost_below * 0.99)
             if present:   # predicted only, but the target is there: not lost
