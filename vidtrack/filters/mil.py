@@ -77,6 +77,12 @@ COVERAGE_MEMORY = 0.9
 #: motion is then predictable enough for the prediction to carry the box
 OCCLUSION_MOTION = 0.4
 
+
+
+def running_level(level: float | None, value: float) -> float:
+    """Exponential running mean with weight :data:`COVERAGE_MEMORY` on the past (``value`` itself at first)."""
+    return value if level is None else COVERAGE_MEMORY * level + (1.0 - COVERAGE_MEMORY) * value
+
 # ------------------------------------------------------------------ the filter
 
 
@@ -156,9 +162,14 @@ class MILKalmanFilter:
     def _box(self) -> Box:
         return box_from_state(self.x_)
 
+    def _predicted(self, x: np.ndarray, P: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """One prediction of ``(x, P)``: ``x = F x``, ``P = F P F' + Q``, the size rates damped."""
+        x, P = kf_predict(x, P, self.F_, self.Q_)
+        x[[5, 7]] *= self.config.size_damping
+        return x, P
+
     def predict(self) -> Estimate:
-        self.x_, self.P_ = kf_predict(self.x_, self.P_, self.F_, self.Q_)  # x = F x, P = F P F' + Q
-        self.x_[[5, 7]] *= self.config.size_damping
+        self.x_, self.P_ = self._predicted(self.x_, self.P_)
         self._clamp()
         self.estimate_ = Estimate(self._box(), self.C_ @ self.P_ @ self.C_.T,
                                   self.estimate_.confidence, self.estimate_.status)
@@ -182,47 +193,46 @@ class MILKalmanFilter:
         Soatto, sec. 1.2): an occluder hides part of the target, so the graph
         cut finds inliers on a shrinking share of the box, and their centroid
         (and the correlation peak on the visible part) lag behind the target.
-        When a usable measurement's coverage falls below ``occlusion_below``
-        of its running level, the frames measured since the last wholly
-        visible one were already pulled back: the state returns to that frame
-        and is predicted forward at constant velocity.  Then, for up to
-        ``occlusion_frames`` frames, the prediction carries the box.
+        An occlusion begins when a usable measurement's coverage falls below
+        ``occlusion_below`` of its running level within ``occlusion_onset``
+        frames of the last wholly visible one, while the motion has been
+        predictable (running innovation length below :data:`OCCLUSION_MOTION`).
+        The frames measured since that visible one were already pulled back:
+        the state returns to it and is predicted forward at constant velocity.
+        The prediction then carries the box until a measurement's coverage
+        recovers or ``occlusion_frames`` frames pass.
         """
         c = self.config
         self.since_visible_ += 1
-        hidden = coverage is not None and self.coverage_level_ is not None and c.occlusion_below is not None \
-            and coverage < c.occlusion_below * self.coverage_level_
+        hidden = (coverage is not None and c.occlusion_below is not None and self.coverage_level_ is not None
+                  and coverage < c.occlusion_below * self.coverage_level_)
         if self.occluded_run_:
             self.occluded_run_ += 1
             if self.occluded_run_ <= c.occlusion_frames and (coverage is None or hidden):
                 return True
             self.occluded_run_ = 0
             return False
-        if (coverage is None or c.occlusion_below is None or self.visible_ is None
-                or coverage >= c.occlusion_below * self.coverage_level_
-                or self.motion_level_ is None or self.motion_level_ >= OCCLUSION_MOTION
-                or self.since_visible_ > c.occlusion_onset):
+        if (not hidden or self.visible_ is None or self.motion_level_ is None
+                or self.motion_level_ >= OCCLUSION_MOTION or self.since_visible_ > c.occlusion_onset):
             return False
         x, P = self.visible_
         for _ in range(self.since_visible_):
-            x, P = kf_predict(x, P, self.F_, self.Q_)
-            x[[5, 7]] *= c.size_damping
+            x, P = self._predicted(x, P)
         self.x_, self.P_ = x, P
         self._clamp()
         self.visible_ = None   # the next occlusion begins after a wholly visible frame
         self.occluded_run_ = 1
         return True
 
-    def _remember_visible(self, coverage: float | None) -> None:
-        """Keep the running coverage level and the state of the last wholly visible frame."""
+    def _remember_measured(self, coverage: float | None, motion: float) -> None:
+        """After an update: the running levels of the coverage and the motion, and the last wholly visible state."""
+        self.motion_level_ = running_level(self.motion_level_, motion)
         if coverage is None:
             return
-        level = self.coverage_level_
-        if level is None or coverage >= VISIBLE_ABOVE * level:
+        if self.coverage_level_ is None or coverage >= VISIBLE_ABOVE * self.coverage_level_:
             self.visible_ = (self.x_.copy(), self.P_.copy())
             self.since_visible_ = 0
-        m = COVERAGE_MEMORY
-        self.coverage_level_ = coverage if level is None else m * level + (1.0 - m) * coverage
+        self.coverage_level_ = running_level(self.coverage_level_, coverage)
 
     def measurement_noise(self, quality: float) -> np.ndarray:
         """``R`` at measurement ``quality``: ``diag(r_c, r_c, r_d, r_d)^2 s^2 / quality``."""
@@ -283,9 +293,7 @@ class MILKalmanFilter:
         present = bool(getattr(measurement, "present", False))
         scalars["present"] = float(present)
         if status == TRACKING:
-            self._remember_visible(scalars.get("inlier_coverage"))
-            m, level = COVERAGE_MEMORY, self.motion_level_
-            self.motion_level_ = scalars["motion"] if level is None else m * level + (1.0 - m) * scalars["motion"]
+            self._remember_measured(scalars.get("inlier_coverage"), scalars["motion"])
         if status == LOST and not occluded:
             self._coast()
             quality = min(quality, self.config.lost_below * 0.99)
