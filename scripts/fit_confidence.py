@@ -44,6 +44,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 from vidtrack.eval import confidence as conf_metrics  # noqa: E402
 from vidtrack.eval import metrics  # noqa: E402
 from vidtrack.eval.datasets import annotated_rows, load_dataset  # noqa: E402
+from vidtrack.filters import cbt as cbt_filter  # noqa: E402
 from vidtrack.filters import mil as mil_filter  # noqa: E402
 from vidtrack.filters import score_trackers  # noqa: E402
 from vidtrack.filters.calibration import Calibration, load_calibration, logistic_probability  # noqa: E402
@@ -60,6 +61,7 @@ OUT = Path(__file__).resolve().parents[1] / "vidtrack" / "filters" / "calibratio
 #: all of :data:`~vidtrack.filters.score_trackers.CUES` 0.237, 0.372, 0.307).
 MIL_CUES = tuple(c for c in mil_filter.CUES if c[0] in ("quality", "psr", "inlier_coverage"))
 MAP_CUES = tuple(c for c in score_trackers.CUES if c[0] == "mass_quality")
+CBT_CUES = tuple(c for c in cbt_filter.CUES if c[0] == "raw_confidence")
 
 #: tracker -> (its cues, the setting that switches its calibration off, the rule of its lost threshold)
 TRACKERS = {
@@ -67,6 +69,7 @@ TRACKERS = {
     "nh": (MAP_CUES, {"confidence": None}, "unmeasured"),
     "pf": (MAP_CUES, {"confidence": None}, "unmeasured"),
     "bayes": (MAP_CUES, {"confidence": None}, "unmeasured"),
+    "cbt": (CBT_CUES, {"confidence": None}, "unmeasured"),
 }
 THRESHOLD_RULES = {
     "balance": "argmin over t of max(false_lost / 0.15, missed_loss / 0.02)",
@@ -97,7 +100,7 @@ def collect(name: str, sequences, seeds, calibrated: bool = False) -> tuple[list
             valid = annotated_rows(seq.ground_truth[start:stop])
             for k in range(1, len(boxes)):
                 if valid[k]:
-                    rows.append(scalars[k])
+                    rows.append({**scalars[k], "sequence": seq.name})
                     ious.append(iou[k])
             print(f"  {name} seed {seed} {seq.name}: {len(boxes)} frames", file=sys.stderr, flush=True)
     return rows, np.array(ious)
@@ -124,10 +127,37 @@ def choose_threshold(p: np.ndarray, ious: np.ndarray) -> float:
 
 
 def fit(name: str, rows: list[dict], ious: np.ndarray, C: float) -> Calibration:
-    """Logistic regression of ``IoU > 0.5`` on the standardised, clipped cues."""
+    """Logistic regression of ``IoU > 0.5`` on the standardised, clipped cues of ``name``."""
+    cues, _, rule = TRACKERS[name]
+    return fit_cues(cues, rule, rows, ious, C)
+
+
+def held_out_auc(cues, rows: list[dict], ious: np.ndarray, C: float = 1.0) -> float:
+    """Leave-one-sequence-out ROC AUC of the logistic fit on ``cues`` (rows carry their ``sequence``).
+
+    Each sequence's frames are scored by the fit on the other sequences; the held-out scores are the
+    fit's linear score ``sum_k w_k x_k / s_k`` without its constant, pooled over the sequences, and their
+    ROC AUC for ``IoU > 0.5`` returned.  The constant is left out because with one sequence held out it
+    only encodes the other sequences' rate of good frames, which falls when the held-out sequence is a
+    good one: pooled, it would rank the held-out frames against their own labels.
+    """
+    sequences = np.array([r.get("sequence", "") for r in rows])
+    z = np.zeros(len(rows))
+    for name in np.unique(sequences):
+        test = sequences == name
+        train_rows = [r for r, t in zip(rows, test) if not t]
+        if len(np.unique(ious[~test] > 0.5)) < 2:
+            return float("nan")
+        cal = fit_cues(cues, "balance", train_rows, ious[~test], C)
+        X = np.array([cal.vector(r) for r, t in zip(rows, test) if t])
+        z[test] = X @ (cal.coef / cal.scale)
+    return conf_metrics.roc_auc(z, ious > 0.5)
+
+
+def fit_cues(cues, rule: str, rows: list[dict], ious: np.ndarray, C: float) -> Calibration:
+    """Logistic regression of ``IoU > 0.5`` on the standardised, clipped ``cues``; ``rule`` sets the threshold."""
     from sklearn.linear_model import LogisticRegression
 
-    cues, _, rule = TRACKERS[name]
     names = tuple(c[0] for c in cues)
     fill, lower, upper = (np.array([c[i] for c in cues], float) for i in (1, 2, 3))
     probe = Calibration(cues=names, mean=np.zeros(len(names)), scale=np.ones(len(names)),

@@ -52,6 +52,7 @@ from scipy.ndimage import map_coordinates
 
 from ..types import LOST, TRACKING, Box, Estimate, Frame, Measurement, ScoreMap
 from .calibration import load_calibration
+from .confidence_cues import score_map_cues, verification_cues
 from .grid_bayes import gaussian_transition, grid_predict_separable, grid_update_log
 from .normalhedge import NormalHedgeTracker, weight_concentration
 from .particle import ParticleFilter, weighted_mean_cov
@@ -75,6 +76,13 @@ CUES = (
     ("motion", 0.0, 0.0, 2.0),
     ("mass_quality", 0.0, 0.0, 1.0),
     ("coast", 0.0, 0.0, 6.0),
+    ("verify", 0.0, -1.0, 1.0),
+    ("verify_gap", 0.0, 0.0, 2.0),
+    ("colour", 0.5, 0.0, 1.0),
+    ("score_at", 0.0, -1.0, 1.0),
+    ("peak_offset", 0.0, 0.0, 3.0),
+    ("log_scale", 0.0, 0.0, 2.0),
+    ("spread", 0.0, 0.0, 2.0),
 )
 
 
@@ -119,6 +127,12 @@ class _CentreBoxFilter:
         stages = getattr(measurement, "stages", None) or {}
         if "psr" in stages:
             cues["psr"] = float(stages["psr"])
+        centre = estimate.box.center
+        cues.update(verification_cues(stages, centre))
+        if isinstance(measurement, ScoreMap):
+            cues.update(score_map_cues(measurement, centre, self.scale_, self.scale_))
+        if estimate.covariance is not None:
+            cues["spread"] = float(np.sqrt(max(np.trace(estimate.covariance), 0.0))) / max(self.scale_, 1e-9)
         if measured:
             cues["concentration"] = float(estimate.scalars.get("concentration", 0.0))
             cues["mass_quality"] = cues["concentration"] * float(np.clip(cues["quality"], 0.0, 1.0))
