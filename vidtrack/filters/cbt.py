@@ -30,7 +30,7 @@ from ..errors import UsageError
 from ..types import LOST, TRACKING, Box, Detections, Estimate, Frame, Measurement
 from .calibration import load_calibration
 from .cbt_model import CBTModel
-from .confidence_cues import verification_cues
+from .confidence_cues import RunningCues, verification_cues
 from .channels import mean_field_update, product_likelihood
 
 #: The calibrated confidence's cues: (name, value when missing, lower, upper); see :class:`CBTFilter`
@@ -48,6 +48,8 @@ CUES = (
     ("verify", 0.0, -1.0, 1.0),
     ("verify_gap", 0.0, 0.0, 2.0),
     ("colour", 0.5, 0.0, 1.0),
+    ("verify_mean", 0.0, -1.0, 1.0),
+    ("colour_mean", 0.5, 0.0, 1.0),
 )
 
 #: Largest memory, in MB, the position grid's transition tensors may take (both axes, with the temporaries
@@ -214,6 +216,7 @@ class CBTFilter:
         self.prior_box_ = box
         self.calibration_ = None if self.confidence is None else load_calibration(self.confidence)
         self.unmeasured_run_ = 0
+        self.running_ = RunningCues()
         self.estimate_ = Estimate(box, None, 1.0, TRACKING, {})
 
     @property
@@ -315,6 +318,7 @@ class CBTFilter:
         if "psr" in stages:
             scalars["psr"] = float(stages["psr"])
         scalars.update(verification_cues(stages, box.center))
+        scalars.update(self.running_.update(scalars))
         if self.calibration_ is None:
             return raw
         p = self.calibration_.probability(scalars)

@@ -14,7 +14,10 @@ here, from what the measurer put in the measurement:
 * ``score_at``: the detector's score map (divided by its peak) at the
   estimate's centre, ``peak_offset`` the distance from the map's peak to
   the estimate in box sizes;
-* ``log_scale``: ``|log|`` of the measured box size over the initial one.
+* ``log_scale``: ``|log|`` of the measured box size over the initial one;
+* ``verify_mean``, ``colour_mean``: ``verify`` and ``colour`` averaged over
+  the last frames (an exponential average, :class:`RunningCues`): a drift
+  lasts, a single blurred or occluded frame does not.
 """
 
 from __future__ import annotations
@@ -63,3 +66,22 @@ def score_map_cues(smap: ScoreMap, centre, scale: float, init_scale: float) -> d
     return {"score_at": map_value(scores, smap, centre),
             "peak_offset": float(np.linalg.norm(np.asarray(centre, float) - peak) / max(scale, 1e-9)),
             "log_scale": abs(float(np.log(size / max(init_scale, 1e-9))))}
+
+
+class RunningCues:
+    """Exponential averages ``m <- (1 - gain) m + gain x`` of named cues; the first value starts each average."""
+
+    def __init__(self, names: tuple[str, ...] = ("verify", "colour"), gain: float = 0.3) -> None:
+        self.names = names
+        self.gain = gain
+        self.means_: dict[str, float] = {}
+
+    def update(self, cues: Mapping[str, float]) -> dict[str, float]:
+        """Fold in this frame's ``cues``; the averages as ``<name>_mean``."""
+        for name in self.names:
+            x = cues.get(name)
+            if x is None or not np.isfinite(x):
+                continue
+            m = self.means_.get(name)
+            self.means_[name] = float(x) if m is None else (1.0 - self.gain) * m + self.gain * float(x)
+        return {f"{name}_mean": m for name, m in self.means_.items()}

@@ -52,7 +52,7 @@ from scipy.ndimage import map_coordinates
 
 from ..types import LOST, TRACKING, Box, Estimate, Frame, Measurement, ScoreMap
 from .calibration import load_calibration
-from .confidence_cues import score_map_cues, verification_cues
+from .confidence_cues import RunningCues, score_map_cues, verification_cues
 from .grid_bayes import gaussian_transition, grid_predict_separable, grid_update_log
 from .normalhedge import NormalHedgeTracker, weight_concentration
 from .particle import ParticleFilter, weighted_mean_cov
@@ -83,6 +83,8 @@ CUES = (
     ("peak_offset", 0.0, 0.0, 3.0),
     ("log_scale", 0.0, 0.0, 2.0),
     ("spread", 0.0, 0.0, 2.0),
+    ("verify_mean", 0.0, -1.0, 1.0),
+    ("colour_mean", 0.5, 0.0, 1.0),
 )
 
 
@@ -113,6 +115,7 @@ class _CentreBoxFilter:
         confidence = getattr(self, "confidence", None)
         self.calibration_ = None if confidence is None else load_calibration(confidence)
         self.unmeasured_run_ = 0
+        self.running_ = RunningCues()
 
     def update(self, measurement: Measurement | None) -> Estimate:
         """The filter's own update, then the confidence and status from the cues (see the module docstring)."""
@@ -129,6 +132,7 @@ class _CentreBoxFilter:
             cues["psr"] = float(stages["psr"])
         centre = estimate.box.center
         cues.update(verification_cues(stages, centre))
+        cues.update(self.running_.update(cues))
         if isinstance(measurement, ScoreMap):
             cues.update(score_map_cues(measurement, centre, self.scale_, self.scale_))
         if estimate.covariance is not None:
