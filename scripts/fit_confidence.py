@@ -60,8 +60,8 @@ OUT = Path(__file__).resolve().parents[1] / "vidtrack" / "filters" / "calibratio
 #: trackers: their uncalibrated confidence alone, i.e. Platt scaling (pf 0.302, nh 0.423, bayes 0.369;
 #: all of :data:`~vidtrack.filters.score_trackers.CUES` 0.237, 0.372, 0.307).
 MIL_CUES = tuple(c for c in mil_filter.CUES if c[0] in ("quality", "psr", "inlier_coverage"))
-MAP_CUES = tuple(c for c in score_trackers.CUES if c[0] == "mass_quality")
-CBT_CUES = tuple(c for c in cbt_filter.CUES if c[0] == "raw_confidence")
+MAP_CUES = tuple(c for c in score_trackers.CUES if c[0] in ("verify_mean", "colour"))
+CBT_CUES = tuple(c for c in cbt_filter.CUES if c[0] in ("verify_mean", "mode_mass", "verify_gap"))
 
 #: tracker -> (its cues, the setting that switches its calibration off, the rule of its lost threshold)
 TRACKERS = {
@@ -71,6 +71,9 @@ TRACKERS = {
     "bayes": (MAP_CUES, {"confidence": None}, "unmeasured"),
     "cbt": (CBT_CUES, {"confidence": None}, "unmeasured"),
 }
+#: The cues ``--select`` chooses from.
+SELECT_FROM = {"nh": score_trackers.CUES, "pf": score_trackers.CUES, "bayes": score_trackers.CUES,
+               "cbt": cbt_filter.CUES}
 THRESHOLD_RULES = {
     "balance": "argmin over t of max(false_lost / 0.15, missed_loss / 0.02)",
     "unmeasured": "just above the probability of a frame without an update (the filter keeps its status: lost = the update was skipped)",
@@ -132,26 +135,64 @@ def fit(name: str, rows: list[dict], ious: np.ndarray, C: float) -> Calibration:
     return fit_cues(cues, rule, rows, ious, C)
 
 
-def held_out_auc(cues, rows: list[dict], ious: np.ndarray, C: float = 1.0) -> float:
+def cue_matrix(cues, rows: list[dict]) -> np.ndarray:
+    """``(N, K)`` clipped cue values of ``rows`` (missing or non-finite cues take their fill value)."""
+    fill, lower, upper = (np.array([c[i] for c in cues], float) for i in (1, 2, 3))
+    X = np.array([[float(r.get(c[0], np.nan)) for c in cues] for r in rows], float).reshape(len(rows), len(cues))
+    return np.clip(np.where(np.isfinite(X), X, fill), lower, upper)
+
+
+def held_out_auc(cues, rows: list[dict], ious: np.ndarray, C: float = 1.0, X: np.ndarray | None = None) -> float:
     """Leave-one-sequence-out ROC AUC of the logistic fit on ``cues`` (rows carry their ``sequence``).
 
-    Each sequence's frames are scored by the fit on the other sequences; the held-out scores are the
-    fit's linear score ``sum_k w_k x_k / s_k`` without its constant, pooled over the sequences, and their
-    ROC AUC for ``IoU > 0.5`` returned.  The constant is left out because with one sequence held out it
-    only encodes the other sequences' rate of good frames, which falls when the held-out sequence is a
-    good one: pooled, it would rank the held-out frames against their own labels.
+    Each sequence's frames are scored by the fit on the other sequences: the held-out score is the
+    cues, standardised over all rows, projected on the fit's direction (its weights in those units,
+    scaled to length 1); these scores are pooled over the sequences and their ROC AUC for ``IoU > 0.5``
+    returned.  The fit's constant and length are left out because with one sequence held out they
+    mostly encode the other sequences' rate of good frames (lower when the held-out sequence is a good
+    one): pooled, they would rank each sequence's frames by its own label rate, against them.  With one
+    cue the score is the cue itself (signed), so a single cue's figure is its own ROC AUC when the folds
+    agree on its sign.  ``X``: the rows' :func:`cue_matrix`, if already built.
     """
+    from sklearn.linear_model import LogisticRegression
+
+    X = cue_matrix(cues, rows) if X is None else X
+    y = ious > 0.5
     sequences = np.array([r.get("sequence", "") for r in rows])
     z = np.zeros(len(rows))
+    g_mean, g_scale = X.mean(axis=0), X.std(axis=0)
+    g_scale = np.where(g_scale > 1e-9, g_scale, 1.0)
     for name in np.unique(sequences):
         test = sequences == name
-        train_rows = [r for r, t in zip(rows, test) if not t]
-        if len(np.unique(ious[~test] > 0.5)) < 2:
+        if len(np.unique(y[~test])) < 2:
             return float("nan")
-        cal = fit_cues(cues, "balance", train_rows, ious[~test], C)
-        X = np.array([cal.vector(r) for r, t in zip(rows, test) if t])
-        z[test] = X @ (cal.coef / cal.scale)
-    return conf_metrics.roc_auc(z, ious > 0.5)
+        mean, scale = X[~test].mean(axis=0), X[~test].std(axis=0)
+        scale = np.where(scale > 1e-9, scale, 1.0)
+        model = LogisticRegression(C=C, max_iter=1000).fit((X[~test] - mean) / scale, y[~test])
+        direction = model.coef_[0] / scale * g_scale
+        z[test] = ((X[test] - g_mean) / g_scale) @ (direction / max(float(np.linalg.norm(direction)), 1e-12))
+    return conf_metrics.roc_auc(z, y)
+
+
+def select_cues(table, rows: list[dict], ious: np.ndarray, C: float = 1.0, min_gain: float = 0.003):
+    """Forward selection on :func:`held_out_auc`: from no cue, add the cue of ``table`` that raises it most.
+
+    Stops when no cue raises it by ``min_gain``; returns the chosen cues (rows of ``table``) and a line
+    per step.
+    """
+    table = tuple(table)
+    X = cue_matrix(table, rows)
+    chosen, best, lines = [], 0.5, []
+    while len(chosen) < len(table):
+        scored = [(held_out_auc(tuple(chosen) + (c,), rows, ious, C,
+                                X[:, [table.index(k) for k in (*chosen, c)]]), c) for c in table if c not in chosen]
+        auc, cue = max(scored, key=lambda t: t[0])
+        if not auc >= best + min_gain:
+            break
+        chosen.append(cue)
+        best = auc
+        lines.append(f"  + {cue[0]}: held-out ROC AUC {auc:.3f}")
+    return tuple(chosen), lines
 
 
 def fit_cues(cues, rule: str, rows: list[dict], ious: np.ndarray, C: float) -> Calibration:
@@ -189,6 +230,8 @@ def main(argv=None) -> int:
     parser.add_argument("--out", type=Path, default=OUT)
     parser.add_argument("--cache", type=Path, help="keep (and reuse) each tracker's frames in this folder")
     parser.add_argument("--table", action="store_true", help="print false lost and missed loss per threshold")
+    parser.add_argument("--select", action="store_true",
+                        help="also print the forward selection of cues by held-out ROC AUC (nh, pf, bayes, cbt)")
     parser.add_argument("--passes", type=int, default=1,
                         help="2: refit on the frames of the tracker run with the first pass's calibration "
                              "(its status feeds back into its search)")
@@ -224,13 +267,23 @@ def fit_pass(name, sequences, seeds, args, *, calibrated: bool):
             cache.write_text(json.dumps({"rows": rows, "ious": ious.tolist()}), encoding="utf-8")
     cal = fit(name, rows, ious, args.C)
     p = np.array([cal.probability(r) for r in rows])
-    status = np.where(p < cal.lost_below, conf_metrics.LOST, conf_metrics.TRACKING)
+    if TRACKERS[name][2] == "unmeasured":   # as the filter reports it: its own status, a lost frame kept low
+        kept = np.array([r.get("measured", 1.0) > 0 for r in rows])
+        p = np.where(kept, p, np.minimum(p, 0.99 * cal.lost_below))
+        status = np.where(kept, conf_metrics.TRACKING, conf_metrics.LOST)
+    else:
+        status = np.where(p < cal.lost_below, conf_metrics.LOST, conf_metrics.TRACKING)
     m = conf_metrics.confidence_metrics(ious, p, status)
     weights = ", ".join(f"{c} {w:+.2f}" for c, w in zip(cal.cues, cal.coef))
     print(f"{name}{' (pass on the calibrated tracker)' if calibrated else ''}: {len(rows)} frames; {weights}; "
-          f"intercept {cal.intercept:+.2f}; lost below {cal.lost_below:.2f}")
+          f"intercept {cal.intercept:+.2f}; lost below {cal.lost_below:.3f}")
     print(f"  tune: ROC AUC {m['confidence_auc']:.3f}, ECE {m['ece']:.3f}, false lost {m['false_lost']:.3f}, "
           f"missed loss {m['missed_loss']:.3f}, lost rate {m['lost_rate']:.3f}", flush=True)
+    if all("sequence" in r for r in rows):
+        print(f"  tune, each sequence held out: ROC AUC {held_out_auc(TRACKERS[name][0], rows, ious, args.C):.3f}")
+    if args.select and name in SELECT_FROM:
+        chosen, lines = select_cues(SELECT_FROM[name], rows, ious, args.C)
+        print("\n".join(lines) + f"\n  selected: {', '.join(c[0] for c in chosen)}", flush=True)
     if args.table:
         for t, fl, ml, rate in threshold_table(p, ious):
             print(f"    lost below {t:.2f}: false lost {fl:.3f}, missed loss {ml:.3f}, lost rate {rate:.3f}")
