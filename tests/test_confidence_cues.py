@@ -69,7 +69,7 @@ def test_the_verified_measurer_only_adds_the_verification_stage():
 def _vanishing_clip(n: int = 40, gone: int = 20):
     """The synthetic target, which vanishes at frame ``gone`` (the ground truth keeps moving)."""
     frames, boxes = synthetic_sequence(n=n, size=(200, 150), velocity=(2.0, 0.5))
-    blank, _ = synthetic_sequence(n=1, size=(200, 150), box=(-100, -100, 24, 28))   # the background alone
+    blank, _ = synthetic_sequence(n=1, size=(200, 150), box=(0, 0, 1, 1))   # the background (and one pixel)
     frames = [f if k < gone else Frame(k, blank[0].image.copy()) for k, f in enumerate(frames)]
     return frames, boxes
 
