@@ -1,4 +1,4 @@
-"""Fit the calibrated confidence of ``mil``, ``nh``, ``pf`` and ``bayes`` on the *tune* split.
+"""Fit the calibrated confidence of ``mil``, ``nh``, ``pf``, ``bayes`` and ``cbt`` on the *tune* split.
 
 Runs each tracker (its calibration switched off, so the cues are those of
 the uncalibrated tracker) over the *tune* sequences of
@@ -9,7 +9,7 @@ the init frame left out), fits scikit-learn's ``LogisticRegression`` on the
 standardised cues, and writes ``vidtrack/filters/calibration/<tracker>.json``::
 
     python scripts/fit_confidence.py ../shared/data/sequences --trackers mil --seeds 0,1
-    python scripts/fit_confidence.py ../shared/data/sequences --trackers nh,pf,bayes --seeds 0
+    python scripts/fit_confidence.py ../shared/data/sequences --trackers nh,pf,bayes,cbt --seeds 0 --select
 
 ``--passes 2`` refits on the frames of the tracker run with the first fit,
 for a tracker whose status feeds back into its search; with the packaged
@@ -22,12 +22,18 @@ lost and missed loss at every threshold.
 ``t`` (on a grid 0.05 .. 0.95) minimising ``max(false_lost / 0.15,
 missed_loss / 0.02)``, i.e. balancing the two failure rates of
 :mod:`vidtrack.eval.confidence` against the targets they are held to.  The
-score-map trackers calibrate their uncalibrated confidence alone (Platt
-scaling: a monotone map, so its ranking of the frames is kept), and their threshold is the probability of
-a frame without an update: ``lost`` keeps its meaning there (the update was
-skipped) and their detector's re-detection, which it starts, is unchanged.  The script prints, per tracker, the
-frames used, the coefficients, and the tune ROC AUC, expected calibration
-error, false lost and missed loss of the fitted confidence.
+score-map trackers and ``cbt`` keep their own status (``lost``: the update
+was skipped; ``cbt``: its uncalibrated confidence below its ``lost_below``),
+so their detector's re-detection, which it starts, and their boxes are
+unchanged; their file's threshold is the probability of a frame whose cues
+all take their missing values (nothing of the target seen), and a lost
+frame's probability is kept below it.  The script prints, per tracker, the
+frames used, the coefficients, the tune ROC AUC, expected calibration error,
+false lost and missed loss of the fitted confidence (with the status as the
+filter reports it), and the ROC AUC with each sequence held out
+(:func:`held_out_auc`); ``--select`` also prints the forward selection of
+cues on that held-out figure (:func:`select_cues`), which chose the packaged
+cue sets.
 """
 
 from __future__ import annotations
@@ -54,11 +60,14 @@ from vidtrack.sources import ImageFolderSource  # noqa: E402
 TUNE = "David,Sylvester,FaceOcc1,FaceOcc2,Girl,Tiger1,Tiger2,Man,Dancer2,Football1,Human9,Subway,MotorRolling"
 OUT = Path(__file__).resolve().parents[1] / "vidtrack" / "filters" / "calibration"
 
-#: The cues the packaged files use, chosen on tune by leave-one-sequence-out (fit on 12 sequences, score
-#: the 13th, ROC AUC of the pooled held-out probabilities).  mil: quality, PSR and inlier coverage
+#: The cues the packaged files use, chosen on tune by leave-one-sequence-out.  mil (fit on 12 sequences,
+#: score the 13th, ROC AUC of the pooled held-out probabilities): quality, PSR and inlier coverage
 #: (0.820; all of :data:`~vidtrack.filters.mil.CUES` 0.778, the quality alone 0.691).  The score-map
-#: trackers: their uncalibrated confidence alone, i.e. Platt scaling (pf 0.302, nh 0.423, bayes 0.369;
-#: all of :data:`~vidtrack.filters.score_trackers.CUES` 0.237, 0.372, 0.307).
+#: trackers and cbt: forward selection on :func:`held_out_auc`.  nh: the running first-frame verification
+#: and the colour likelihood (0.905; the uncalibrated confidence 0.694, all of
+#: :data:`~vidtrack.filters.score_trackers.CUES` 0.898), the same two for pf (0.904; 0.734) and bayes
+#: (0.934; 0.753); cbt: the running verification, the mode mass and the verification gap (0.859; the
+#: uncalibrated confidence 0.654, all of :data:`~vidtrack.filters.cbt.CUES` 0.802).
 MIL_CUES = tuple(c for c in mil_filter.CUES if c[0] in ("quality", "psr", "inlier_coverage"))
 MAP_CUES = tuple(c for c in score_trackers.CUES if c[0] in ("verify_mean", "colour"))
 CBT_CUES = tuple(c for c in cbt_filter.CUES if c[0] in ("verify_mean", "mode_mass", "verify_gap"))
