@@ -65,19 +65,22 @@ OUT = Path(__file__).resolve().parents[1] / "vidtrack" / "filters" / "calibratio
 #: (0.820; all of :data:`~vidtrack.filters.mil.CUES` 0.778, the quality alone 0.691).  The score-map
 #: trackers and cbt: forward selection on :func:`held_out_auc`.  nh: the running first-frame verification
 #: and the colour likelihood (0.905; the uncalibrated confidence 0.694, all of
-#: :data:`~vidtrack.filters.score_trackers.CUES` 0.898), the same two for pf (0.904; 0.734) and bayes
-#: (0.934; 0.753); cbt: the running verification, the mode mass and the verification gap (0.859; the
+#: :data:`~vidtrack.filters.score_trackers.CUES` 0.898); pf: the running colour likelihood and the
+#: particles' spread (0.923; 0.734, all 0.792); bayes: the running verification and colour likelihood
+#: (0.935; 0.753, all 0.918); cbt: the running verification, the mode mass and the verification gap (0.859; the
 #: uncalibrated confidence 0.654, all of :data:`~vidtrack.filters.cbt.CUES` 0.802).
 MIL_CUES = tuple(c for c in mil_filter.CUES if c[0] in ("quality", "psr", "inlier_coverage"))
-MAP_CUES = tuple(c for c in score_trackers.CUES if c[0] in ("verify_mean", "colour"))
+NH_CUES = tuple(c for c in score_trackers.CUES if c[0] in ("verify_mean", "colour"))
+PF_CUES = tuple(c for c in score_trackers.CUES if c[0] in ("colour_mean", "spread"))
+BAYES_CUES = tuple(c for c in score_trackers.CUES if c[0] in ("verify_mean", "colour_mean"))
 CBT_CUES = tuple(c for c in cbt_filter.CUES if c[0] in ("verify_mean", "mode_mass", "verify_gap"))
 
 #: tracker -> (its cues, the setting that switches its calibration off, the rule of its lost threshold)
 TRACKERS = {
     "mil": (MIL_CUES, {"kalman.confidence": None}, "balance"),
-    "nh": (MAP_CUES, {"confidence": None}, "unmeasured"),
-    "pf": (MAP_CUES, {"confidence": None}, "unmeasured"),
-    "bayes": (MAP_CUES, {"confidence": None}, "unmeasured"),
+    "nh": (NH_CUES, {"confidence": None}, "unmeasured"),
+    "pf": (PF_CUES, {"confidence": None}, "unmeasured"),
+    "bayes": (BAYES_CUES, {"confidence": None}, "unmeasured"),
     "cbt": (CBT_CUES, {"confidence": None}, "unmeasured"),
 }
 #: The cues ``--select`` chooses from.
