@@ -111,7 +111,13 @@ class CBTFilter:
 
     Confidence: the posterior mass of the decoded mode's ``3x3`` window
     (scaled so ``mass_full`` counts as 1) times the best detection score
-    within a quarter box of it; ``lost`` below ``lost_below``.  While lost,
+    within a quarter box of it; ``lost`` below ``lost_below``.  The reported
+    confidence is, with ``confidence`` set, the calibrated probability that
+    the box overlaps the target by more than 0.5
+    (:mod:`vidtrack.filters.calibration`) from the cues :data:`CUES`,
+    among them the first-frame verification of the box
+    (:mod:`vidtrack.filters.confidence_cues`); it never changes the status
+    or the boxes.  While lost,
     the history is reset to the current position (``coast_when_lost``: the
     learned velocity is forgotten so the box does not run off during an
     occlusion) and nothing is learned.
@@ -156,7 +162,8 @@ class CBTFilter:
         Weigh detections relative to the frame's best score.
     confidence
         Name of the calibrated confidence (``vidtrack/filters/calibration/<name>.json``, from the cues
-        :data:`CUES`); None: the confidence above.  Either way the status follows the confidence above.
+        :data:`CUES`; ``"cbt"`` was fitted on the correlation filter's detections); None: the confidence
+        above.  Either way the status follows the confidence above.
     """
 
     order: int = 2
@@ -179,7 +186,7 @@ class CBTFilter:
     mode_threshold: float = 0.05
     coast_when_lost: bool = True
     relative_scores: bool = True
-    confidence: str | None = None
+    confidence: str | None = "cbt"
 
     def initialize(self, box: Box, frame: Frame | None = None) -> None:
         width = frame.width if frame is not None else int(box.x + 4 * box.w)

@@ -34,8 +34,13 @@ more than 0.5 (:mod:`vidtrack.filters.calibration`) from the cues :data:`CUES`
 the calibration file names (``measured``, the map's ``quality`` and ``psr``,
 the ``concentration``, the ``motion`` of the estimate in box sizes,
 ``mass_quality`` the uncalibrated confidence (concentration times quality),
-``coast`` ``log(1 + n)`` after ``n`` skipped updates; the packaged files use
-``mass_quality`` alone); the status stays ``lost`` when the update was
+``coast`` ``log(1 + n)`` after ``n`` skipped updates, ``spread`` the
+estimate's standard deviation in box sizes, and the cues of
+:mod:`vidtrack.filters.confidence_cues` read at the estimate: the first-frame
+verification ``verify``, ``verify_gap``, ``colour`` and their running
+averages, the map's ``score_at``, ``peak_offset`` and ``log_scale``; the
+packaged files use two cues each, chosen on *tune*, see
+``scripts/fit_confidence.py``); the status stays ``lost`` when the update was
 skipped (the file's threshold is the probability of such a frame, and it
 starts the detector's re-detection).  Each
 exposes (in ``Estimate.stages``) ``{"particles": (N, 3) [cx, cy, weight]}`` in frame
