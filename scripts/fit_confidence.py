@@ -1,4 +1,4 @@
-"""Fit the calibrated confidence of ``mil``, ``nh``, ``pf`` and ``bayes`` on the *tune* split.
+"""Fit the calibrated confidence of ``mil``, ``nh``, ``pf``, ``bayes`` and ``cbt`` on the *tune* split.
 
 Runs each tracker (its calibration switched off, so the cues are those of
 the uncalibrated tracker) over the *tune* sequences of
@@ -9,7 +9,7 @@ the init frame left out), fits scikit-learn's ``LogisticRegression`` on the
 standardised cues, and writes ``vidtrack/filters/calibration/<tracker>.json``::
 
     python scripts/fit_confidence.py ../shared/data/sequences --trackers mil --seeds 0,1
-    python scripts/fit_confidence.py ../shared/data/sequences --trackers nh,pf,bayes --seeds 0
+    python scripts/fit_confidence.py ../shared/data/sequences --trackers nh,pf,bayes,cbt --seeds 0 --select
 
 ``--passes 2`` refits on the frames of the tracker run with the first fit,
 for a tracker whose status feeds back into its search; with the packaged
@@ -22,12 +22,18 @@ lost and missed loss at every threshold.
 ``t`` (on a grid 0.05 .. 0.95) minimising ``max(false_lost / 0.15,
 missed_loss / 0.02)``, i.e. balancing the two failure rates of
 :mod:`vidtrack.eval.confidence` against the targets they are held to.  The
-score-map trackers calibrate their uncalibrated confidence alone (Platt
-scaling: a monotone map, so its ranking of the frames is kept), and their threshold is the probability of
-a frame without an update: ``lost`` keeps its meaning there (the update was
-skipped) and their detector's re-detection, which it starts, is unchanged.  The script prints, per tracker, the
-frames used, the coefficients, and the tune ROC AUC, expected calibration
-error, false lost and missed loss of the fitted confidence.
+score-map trackers and ``cbt`` keep their own status (``lost``: the update
+was skipped; ``cbt``: its uncalibrated confidence below its ``lost_below``),
+so their detector's re-detection, which it starts, and their boxes are
+unchanged; their file's threshold is the probability of a frame whose cues
+all take their missing values (nothing of the target seen), and a lost
+frame's probability is kept below it.  The script prints, per tracker, the
+frames used, the coefficients, the tune ROC AUC, expected calibration error,
+false lost and missed loss of the fitted confidence (with the status as the
+filter reports it), and the ROC AUC with each sequence held out
+(:func:`held_out_auc`); ``--select`` also prints the forward selection of
+cues on that held-out figure (:func:`select_cues`), which chose the packaged
+cue sets.
 """
 
 from __future__ import annotations
@@ -44,6 +50,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 from vidtrack.eval import confidence as conf_metrics  # noqa: E402
 from vidtrack.eval import metrics  # noqa: E402
 from vidtrack.eval.datasets import annotated_rows, load_dataset  # noqa: E402
+from vidtrack.filters import cbt as cbt_filter  # noqa: E402
 from vidtrack.filters import mil as mil_filter  # noqa: E402
 from vidtrack.filters import score_trackers  # noqa: E402
 from vidtrack.filters.calibration import Calibration, load_calibration, logistic_probability  # noqa: E402
@@ -53,21 +60,32 @@ from vidtrack.sources import ImageFolderSource  # noqa: E402
 TUNE = "David,Sylvester,FaceOcc1,FaceOcc2,Girl,Tiger1,Tiger2,Man,Dancer2,Football1,Human9,Subway,MotorRolling"
 OUT = Path(__file__).resolve().parents[1] / "vidtrack" / "filters" / "calibration"
 
-#: The cues the packaged files use, chosen on tune by leave-one-sequence-out (fit on 12 sequences, score
-#: the 13th, ROC AUC of the pooled held-out probabilities).  mil: quality, PSR and inlier coverage
+#: The cues the packaged files use, chosen on tune by leave-one-sequence-out.  mil (fit on 12 sequences,
+#: score the 13th, ROC AUC of the pooled held-out probabilities): quality, PSR and inlier coverage
 #: (0.820; all of :data:`~vidtrack.filters.mil.CUES` 0.778, the quality alone 0.691).  The score-map
-#: trackers: their uncalibrated confidence alone, i.e. Platt scaling (pf 0.302, nh 0.423, bayes 0.369;
-#: all of :data:`~vidtrack.filters.score_trackers.CUES` 0.237, 0.372, 0.307).
+#: trackers and cbt: forward selection on :func:`held_out_auc`.  nh: the running first-frame verification
+#: and the colour likelihood (0.905; the uncalibrated confidence 0.694, all of
+#: :data:`~vidtrack.filters.score_trackers.CUES` 0.898); pf: the running colour likelihood and the
+#: particles' spread (0.923; 0.734, all 0.792); bayes: the running verification and colour likelihood
+#: (0.935; 0.753, all 0.918); cbt: the running verification, the mode mass and the verification gap (0.859; the
+#: uncalibrated confidence 0.654, all of :data:`~vidtrack.filters.cbt.CUES` 0.802).
 MIL_CUES = tuple(c for c in mil_filter.CUES if c[0] in ("quality", "psr", "inlier_coverage"))
-MAP_CUES = tuple(c for c in score_trackers.CUES if c[0] == "mass_quality")
+NH_CUES = tuple(c for c in score_trackers.CUES if c[0] in ("verify_mean", "colour"))
+PF_CUES = tuple(c for c in score_trackers.CUES if c[0] in ("colour_mean", "spread"))
+BAYES_CUES = tuple(c for c in score_trackers.CUES if c[0] in ("verify_mean", "colour_mean"))
+CBT_CUES = tuple(c for c in cbt_filter.CUES if c[0] in ("verify_mean", "mode_mass", "verify_gap"))
 
 #: tracker -> (its cues, the setting that switches its calibration off, the rule of its lost threshold)
 TRACKERS = {
     "mil": (MIL_CUES, {"kalman.confidence": None}, "balance"),
-    "nh": (MAP_CUES, {"confidence": None}, "unmeasured"),
-    "pf": (MAP_CUES, {"confidence": None}, "unmeasured"),
-    "bayes": (MAP_CUES, {"confidence": None}, "unmeasured"),
+    "nh": (NH_CUES, {"confidence": None}, "unmeasured"),
+    "pf": (PF_CUES, {"confidence": None}, "unmeasured"),
+    "bayes": (BAYES_CUES, {"confidence": None}, "unmeasured"),
+    "cbt": (CBT_CUES, {"confidence": None}, "unmeasured"),
 }
+#: The cues ``--select`` chooses from.
+SELECT_FROM = {"nh": score_trackers.CUES, "pf": score_trackers.CUES, "bayes": score_trackers.CUES,
+               "cbt": cbt_filter.CUES}
 THRESHOLD_RULES = {
     "balance": "argmin over t of max(false_lost / 0.15, missed_loss / 0.02)",
     "unmeasured": "just above the probability of a frame without an update (the filter keeps its status: lost = the update was skipped)",
@@ -97,7 +115,7 @@ def collect(name: str, sequences, seeds, calibrated: bool = False) -> tuple[list
             valid = annotated_rows(seq.ground_truth[start:stop])
             for k in range(1, len(boxes)):
                 if valid[k]:
-                    rows.append(scalars[k])
+                    rows.append({**scalars[k], "sequence": seq.name})
                     ious.append(iou[k])
             print(f"  {name} seed {seed} {seq.name}: {len(boxes)} frames", file=sys.stderr, flush=True)
     return rows, np.array(ious)
@@ -124,10 +142,75 @@ def choose_threshold(p: np.ndarray, ious: np.ndarray) -> float:
 
 
 def fit(name: str, rows: list[dict], ious: np.ndarray, C: float) -> Calibration:
-    """Logistic regression of ``IoU > 0.5`` on the standardised, clipped cues."""
+    """Logistic regression of ``IoU > 0.5`` on the standardised, clipped cues of ``name``."""
+    cues, _, rule = TRACKERS[name]
+    return fit_cues(cues, rule, rows, ious, C)
+
+
+def cue_matrix(cues, rows: list[dict]) -> np.ndarray:
+    """``(N, K)`` clipped cue values of ``rows`` (missing or non-finite cues take their fill value)."""
+    fill, lower, upper = (np.array([c[i] for c in cues], float) for i in (1, 2, 3))
+    X = np.array([[float(r.get(c[0], np.nan)) for c in cues] for r in rows], float).reshape(len(rows), len(cues))
+    return np.clip(np.where(np.isfinite(X), X, fill), lower, upper)
+
+
+def held_out_auc(cues, rows: list[dict], ious: np.ndarray, C: float = 1.0, X: np.ndarray | None = None) -> float:
+    """Leave-one-sequence-out ROC AUC of the logistic fit on ``cues`` (rows carry their ``sequence``).
+
+    Each sequence's frames are scored by the fit on the other sequences: the held-out score is the
+    cues, standardised over all rows, projected on the fit's direction (its weights in those units,
+    scaled to length 1); these scores are pooled over the sequences and their ROC AUC for ``IoU > 0.5``
+    returned.  The fit's constant and length are left out because with one sequence held out they
+    mostly encode the other sequences' rate of good frames (lower when the held-out sequence is a good
+    one): pooled, they would rank each sequence's frames by its own label rate, against them.  With one
+    cue the score is the cue itself (signed), so a single cue's figure is its own ROC AUC when the folds
+    agree on its sign.  ``X``: the rows' :func:`cue_matrix`, if already built.
+    """
     from sklearn.linear_model import LogisticRegression
 
-    cues, _, rule = TRACKERS[name]
+    X = cue_matrix(cues, rows) if X is None else X
+    y = ious > 0.5
+    sequences = np.array([r.get("sequence", "") for r in rows])
+    z = np.zeros(len(rows))
+    g_mean, g_scale = X.mean(axis=0), X.std(axis=0)
+    g_scale = np.where(g_scale > 1e-9, g_scale, 1.0)
+    for name in np.unique(sequences):
+        test = sequences == name
+        if len(np.unique(y[~test])) < 2:
+            return float("nan")
+        mean, scale = X[~test].mean(axis=0), X[~test].std(axis=0)
+        scale = np.where(scale > 1e-9, scale, 1.0)
+        model = LogisticRegression(C=C, max_iter=1000).fit((X[~test] - mean) / scale, y[~test])
+        direction = model.coef_[0] / scale * g_scale
+        z[test] = ((X[test] - g_mean) / g_scale) @ (direction / max(float(np.linalg.norm(direction)), 1e-12))
+    return conf_metrics.roc_auc(z, y)
+
+
+def select_cues(table, rows: list[dict], ious: np.ndarray, C: float = 1.0, min_gain: float = 0.003):
+    """Forward selection on :func:`held_out_auc`: from no cue, add the cue of ``table`` that raises it most.
+
+    Stops when no cue raises it by ``min_gain``; returns the chosen cues (rows of ``table``) and a line
+    per step.
+    """
+    table = tuple(table)
+    X = cue_matrix(table, rows)
+    chosen, best, lines = [], 0.5, []
+    while len(chosen) < len(table):
+        scored = [(held_out_auc(tuple(chosen) + (c,), rows, ious, C,
+                                X[:, [table.index(k) for k in (*chosen, c)]]), c) for c in table if c not in chosen]
+        auc, cue = max(scored, key=lambda t: t[0])
+        if not auc >= best + min_gain:
+            break
+        chosen.append(cue)
+        best = auc
+        lines.append(f"  + {cue[0]}: held-out ROC AUC {auc:.3f}")
+    return tuple(chosen), lines
+
+
+def fit_cues(cues, rule: str, rows: list[dict], ious: np.ndarray, C: float) -> Calibration:
+    """Logistic regression of ``IoU > 0.5`` on the standardised, clipped ``cues``; ``rule`` sets the threshold."""
+    from sklearn.linear_model import LogisticRegression
+
     names = tuple(c[0] for c in cues)
     fill, lower, upper = (np.array([c[i] for c in cues], float) for i in (1, 2, 3))
     probe = Calibration(cues=names, mean=np.zeros(len(names)), scale=np.ones(len(names)),
@@ -159,6 +242,8 @@ def main(argv=None) -> int:
     parser.add_argument("--out", type=Path, default=OUT)
     parser.add_argument("--cache", type=Path, help="keep (and reuse) each tracker's frames in this folder")
     parser.add_argument("--table", action="store_true", help="print false lost and missed loss per threshold")
+    parser.add_argument("--select", action="store_true",
+                        help="also print the forward selection of cues by held-out ROC AUC (nh, pf, bayes, cbt)")
     parser.add_argument("--passes", type=int, default=1,
                         help="2: refit on the frames of the tracker run with the first pass's calibration "
                              "(its status feeds back into its search)")
@@ -194,13 +279,23 @@ def fit_pass(name, sequences, seeds, args, *, calibrated: bool):
             cache.write_text(json.dumps({"rows": rows, "ious": ious.tolist()}), encoding="utf-8")
     cal = fit(name, rows, ious, args.C)
     p = np.array([cal.probability(r) for r in rows])
-    status = np.where(p < cal.lost_below, conf_metrics.LOST, conf_metrics.TRACKING)
+    if TRACKERS[name][2] == "unmeasured":   # as the filter reports it: its own status, a lost frame kept low
+        kept = np.array([r.get("measured", 1.0) > 0 for r in rows])
+        p = np.where(kept, p, np.minimum(p, 0.99 * cal.lost_below))
+        status = np.where(kept, conf_metrics.TRACKING, conf_metrics.LOST)
+    else:
+        status = np.where(p < cal.lost_below, conf_metrics.LOST, conf_metrics.TRACKING)
     m = conf_metrics.confidence_metrics(ious, p, status)
     weights = ", ".join(f"{c} {w:+.2f}" for c, w in zip(cal.cues, cal.coef))
     print(f"{name}{' (pass on the calibrated tracker)' if calibrated else ''}: {len(rows)} frames; {weights}; "
-          f"intercept {cal.intercept:+.2f}; lost below {cal.lost_below:.2f}")
+          f"intercept {cal.intercept:+.2f}; lost below {cal.lost_below:.3f}")
     print(f"  tune: ROC AUC {m['confidence_auc']:.3f}, ECE {m['ece']:.3f}, false lost {m['false_lost']:.3f}, "
           f"missed loss {m['missed_loss']:.3f}, lost rate {m['lost_rate']:.3f}", flush=True)
+    if all("sequence" in r for r in rows):
+        print(f"  tune, each sequence held out: ROC AUC {held_out_auc(TRACKERS[name][0], rows, ious, args.C):.3f}")
+    if args.select and name in SELECT_FROM:
+        chosen, lines = select_cues(SELECT_FROM[name], rows, ious, args.C)
+        print("\n".join(lines) + f"\n  selected: {', '.join(c[0] for c in chosen)}", flush=True)
     if args.table:
         for t, fl, ml, rate in threshold_table(p, ious):
             print(f"    lost below {t:.2f}: false lost {fl:.3f}, missed loss {ml:.3f}, lost rate {rate:.3f}")

@@ -46,7 +46,8 @@ def test_bad_calibration_files_are_usage_errors():
 MIL_GOOD = {"measured": 1.0, "quality": 0.9, "psr": 20.0, "svm_margin": 1.5, "inlier_coverage": 0.6,
             "motion": 0.5, "scale_change": 0.0, "coast": 0.0, "present": 1.0}
 MAP_GOOD = {"measured": 1.0, "quality": 0.9, "psr": 20.0, "concentration": 0.8, "motion": 0.05,
-            "mass_quality": 0.72, "coast": 0.0}
+            "mass_quality": 0.72, "coast": 0.0, "verify": 0.6, "verify_mean": 0.6, "colour": 0.7,
+            "colour_mean": 0.7, "spread": 0.05}
 COASTING = {"measured": 0.0, "quality": 0.0, "psr": 2.0, "coast": 3.0}
 
 

@@ -198,12 +198,12 @@ def test_cbt_tracks_a_synthetic_target_from_detections(moving_target):
 def test_cbt_configuration_reaches_the_measurer_and_the_filter():
     default = build_tracker("cbt", seed=0)
     assert default.filter.inner == CBTFilter()  # the recipe's defaults are the filter's
-    assert default.measurer == DetectionMeasurer()
+    assert default.measurer.inner == DetectionMeasurer()   # inside the appearance verification
     tracker = build_tracker("cbt", settings={"detections.min_score": "0.55", "order": "3", "product": "sqrt",
                                              "detector": "ncc", "detections.margin": "1.5"}, relearn_every=4)
     inner = tracker.filter.inner
     assert (inner.order, inner.product, inner.relearn_every) == (3, "sqrt", 4)
-    assert tracker.measurer == DetectionMeasurer(detector="ncc", margin=1.5, min_score=0.55)
+    assert tracker.measurer.inner == DetectionMeasurer(detector="ncc", margin=1.5, min_score=0.55)
     with pytest.raises(UsageError, match="cf, ncc"):
         build_tracker("cbt", detector="face")
     with pytest.raises(UsageError, match="detections.min_score"):

@@ -28,8 +28,29 @@ from ..channels import (ChannelBasis, conditional_from_counts, current_marginal,
                         position_conditional, random_walk_displacement, shift_tensor)
 from ..errors import UsageError
 from ..types import LOST, TRACKING, Box, Detections, Estimate, Frame, Measurement
+from .calibration import load_calibration
 from .cbt_model import CBTModel
+from .confidence_cues import RunningCues, verification_cues
 from .channels import mean_field_update, product_likelihood
+
+#: The calibrated confidence's cues: (name, value when missing, lower, upper); see :class:`CBTFilter`
+CUES = (
+    ("measured", 0.0, 0.0, 1.0),
+    ("raw_confidence", 0.0, 0.0, 1.0),
+    ("mode_mass", 0.0, 0.0, 1.0),
+    ("best_near", 0.0, 0.0, 1.0),
+    ("modes", 0.0, 0.0, 10.0),
+    ("detections", 0.0, 0.0, 10.0),
+    ("quality", 0.0, 0.0, 1.0),
+    ("psr", 0.0, 0.0, 30.0),
+    ("motion", 0.0, 0.0, 2.0),
+    ("coast", 0.0, 0.0, 6.0),
+    ("verify", 0.0, -1.0, 1.0),
+    ("verify_gap", 0.0, 0.0, 2.0),
+    ("colour", 0.5, 0.0, 1.0),
+    ("verify_mean", 0.0, -1.0, 1.0),
+    ("colour_mean", 0.5, 0.0, 1.0),
+)
 
 #: Largest memory, in MB, the position grid's transition tensors may take (both axes, with the temporaries
 #: of building them); a configuration needing more is refused when the filter starts.
@@ -90,7 +111,13 @@ class CBTFilter:
 
     Confidence: the posterior mass of the decoded mode's ``3x3`` window
     (scaled so ``mass_full`` counts as 1) times the best detection score
-    within a quarter box of it; ``lost`` below ``lost_below``.  While lost,
+    within a quarter box of it; ``lost`` below ``lost_below``.  The reported
+    confidence is, with ``confidence`` set, the calibrated probability that
+    the box overlaps the target by more than 0.5
+    (:mod:`vidtrack.filters.calibration`) from the cues :data:`CUES`,
+    among them the first-frame verification of the box
+    (:mod:`vidtrack.filters.confidence_cues`); it never changes the status
+    or the boxes.  While lost,
     the history is reset to the current position (``coast_when_lost``: the
     learned velocity is forgotten so the box does not run off during an
     occlusion) and nothing is learned.
@@ -133,6 +160,10 @@ class CBTFilter:
         Forget the learned velocity while lost.
     relative_scores
         Weigh detections relative to the frame's best score.
+    confidence
+        Name of the calibrated confidence (``vidtrack/filters/calibration/<name>.json``, from the cues
+        :data:`CUES`; ``"cbt"`` was fitted on the correlation filter's detections); None: the confidence
+        above.  Either way the status follows the confidence above.
     """
 
     order: int = 2
@@ -155,6 +186,7 @@ class CBTFilter:
     mode_threshold: float = 0.05
     coast_when_lost: bool = True
     relative_scores: bool = True
+    confidence: str | None = "cbt"
 
     def initialize(self, box: Box, frame: Frame | None = None) -> None:
         width = frame.width if frame is not None else int(box.x + 4 * box.w)
@@ -189,6 +221,9 @@ class CBTFilter:
         self.history_ = [centre.copy()]
         self.since_learn_ = 0
         self.prior_box_ = box
+        self.calibration_ = None if self.confidence is None else load_calibration(self.confidence)
+        self.unmeasured_run_ = 0
+        self.running_ = RunningCues()
         self.estimate_ = Estimate(box, None, 1.0, TRACKING, {})
 
     @property
@@ -268,8 +303,33 @@ class CBTFilter:
             if self.coast_when_lost:  # forget the velocity: the history repeats the current position
                 self.W_ = [diagonal_history(current_marginal(W), self.order) for W in self.W_]
         box = self._box_at(centre) if status == TRACKING else self.prior_box_  # lost: the prediction
+        confidence = self._calibrated(measurement, box, confidence, status, scalars)
         self.estimate_ = Estimate(box, None, confidence, status, scalars)
         return self.estimate_
+
+    def _calibrated(self, measurement: Measurement | None, box: Box, raw: float, status: str,
+                    scalars: dict[str, float]) -> float:
+        """Add the cues :data:`CUES` to ``scalars``; the calibrated probability (``raw`` without a calibration).
+
+        The status is never changed (it steers the filter and the detector's
+        re-detection); a ``lost`` frame's probability is kept below the
+        calibration's ``lost_below``.
+        """
+        measured = status == TRACKING
+        self.unmeasured_run_ = 0 if measured else self.unmeasured_run_ + 1
+        stages = getattr(measurement, "stages", None) or {}
+        scalars.update(measured=float(measured), raw_confidence=raw,
+                       quality=0.0 if measurement is None else float(getattr(measurement, "quality", 0.0)),
+                       coast=float(np.log1p(self.unmeasured_run_)),
+                       motion=float(np.linalg.norm(box.center - self.estimate_.box.center) / max(self.scale_, 1e-9)))
+        if "psr" in stages:
+            scalars["psr"] = float(stages["psr"])
+        scalars.update(verification_cues(stages, box.center))
+        scalars.update(self.running_.update(scalars))
+        if self.calibration_ is None:
+            return raw
+        p = self.calibration_.probability(scalars)
+        return p if measured else min(p, 0.99 * self.calibration_.lost_below)
 
     def _learn(self) -> None:
         """Online covariance estimate (eq. 11) of the displacement model from the decoded centres."""

@@ -34,8 +34,13 @@ more than 0.5 (:mod:`vidtrack.filters.calibration`) from the cues :data:`CUES`
 the calibration file names (``measured``, the map's ``quality`` and ``psr``,
 the ``concentration``, the ``motion`` of the estimate in box sizes,
 ``mass_quality`` the uncalibrated confidence (concentration times quality),
-``coast`` ``log(1 + n)`` after ``n`` skipped updates; the packaged files use
-``mass_quality`` alone); the status stays ``lost`` when the update was
+``coast`` ``log(1 + n)`` after ``n`` skipped updates, ``spread`` the
+estimate's standard deviation in box sizes, and the cues of
+:mod:`vidtrack.filters.confidence_cues` read at the estimate: the first-frame
+verification ``verify``, ``verify_gap``, ``colour`` and their running
+averages, the map's ``score_at``, ``peak_offset`` and ``log_scale``; the
+packaged files use two cues each, chosen on *tune*, see
+``scripts/fit_confidence.py``); the status stays ``lost`` when the update was
 skipped (the file's threshold is the probability of such a frame, and it
 starts the detector's re-detection).  Each
 exposes (in ``Estimate.stages``) ``{"particles": (N, 3) [cx, cy, weight]}`` in frame
@@ -52,6 +57,7 @@ from scipy.ndimage import map_coordinates
 
 from ..types import LOST, TRACKING, Box, Estimate, Frame, Measurement, ScoreMap
 from .calibration import load_calibration
+from .confidence_cues import RunningCues, score_map_cues, verification_cues
 from .grid_bayes import gaussian_transition, grid_predict_separable, grid_update_log
 from .normalhedge import NormalHedgeTracker, weight_concentration
 from .particle import ParticleFilter, weighted_mean_cov
@@ -75,6 +81,15 @@ CUES = (
     ("motion", 0.0, 0.0, 2.0),
     ("mass_quality", 0.0, 0.0, 1.0),
     ("coast", 0.0, 0.0, 6.0),
+    ("verify", 0.0, -1.0, 1.0),
+    ("verify_gap", 0.0, 0.0, 2.0),
+    ("colour", 0.5, 0.0, 1.0),
+    ("score_at", 0.0, -1.0, 1.0),
+    ("peak_offset", 0.0, 0.0, 3.0),
+    ("log_scale", 0.0, 0.0, 2.0),
+    ("spread", 2.0, 0.0, 2.0),
+    ("verify_mean", 0.0, -1.0, 1.0),
+    ("colour_mean", 0.5, 0.0, 1.0),
 )
 
 
@@ -105,6 +120,7 @@ class _CentreBoxFilter:
         confidence = getattr(self, "confidence", None)
         self.calibration_ = None if confidence is None else load_calibration(confidence)
         self.unmeasured_run_ = 0
+        self.running_ = RunningCues()
 
     def update(self, measurement: Measurement | None) -> Estimate:
         """The filter's own update, then the confidence and status from the cues (see the module docstring)."""
@@ -119,6 +135,13 @@ class _CentreBoxFilter:
         stages = getattr(measurement, "stages", None) or {}
         if "psr" in stages:
             cues["psr"] = float(stages["psr"])
+        centre = estimate.box.center
+        cues.update(verification_cues(stages, centre))
+        cues.update(self.running_.update(cues))
+        if isinstance(measurement, ScoreMap):
+            cues.update(score_map_cues(measurement, centre, self.scale_, self.scale_))
+        if estimate.covariance is not None:
+            cues["spread"] = float(np.sqrt(max(np.trace(estimate.covariance), 0.0))) / max(self.scale_, 1e-9)
         if measured:
             cues["concentration"] = float(estimate.scalars.get("concentration", 0.0))
             cues["mass_quality"] = cues["concentration"] * float(np.clip(cues["quality"], 0.0, 1.0))

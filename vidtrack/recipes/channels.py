@@ -21,6 +21,7 @@ from ..filters.box import MeasuredSizeFilter
 from ..filters.cbt import CBTFilter
 from ..filters.cbt_model import CBTModel
 from ..measure.detections import DetectionMeasurer
+from ..measure.verification import VerifiedMeasurer
 from ..tracker import Recipe, Tracker
 
 #: Markov order of the motion model when neither the configuration nor a model file sets it.
@@ -71,6 +72,9 @@ class CBTConfig:
     mass_full: float = option(0.5, "posterior mass of the decoded mode that counts as full confidence")
     mode_threshold: float = option(0.05, "mass a posterior mode must hold to count in the 'modes' scalar")
     coast_when_lost: bool = option(True, "forget the learned velocity while the target is lost")
+    confidence: str | None = option("cbt", "calibrated confidence: vidtrack/filters/calibration/<name>.json, "
+                                           "fitted on the cf detector (none, or detector ncc: the mode mass "
+                                           "times the best nearby score)")
     grid: GridConfig = option(GridConfig(), "the position channels: their spacing and the window they cover")
     detections: DetectionsConfig = option(DetectionsConfig(), "how a frame's detections are found")
 
@@ -88,13 +92,14 @@ def cbt_filter(config: CBTConfig, model: CBTModel | None = None) -> CBTFilter:
                      score_temperature=config.score_temperature, product=config.product,
                      learn_online=config.learn_online, lost_below=config.lost_below, mass_full=config.mass_full,
                      model=model, mode_threshold=config.mode_threshold, coast_when_lost=config.coast_when_lost,
-                     relative_scores=config.relative_scores)
+                     relative_scores=config.relative_scores,
+                     confidence=config.confidence if config.detector == "cf" else None)
 
 
 def build_cbt(config: CBTConfig, seed=None) -> Tracker:
     """CBT tracker; reads ``config.model`` (a UsageError names a missing or malformed file)."""
     model = None if config.model is None else CBTModel.load(config.model)
-    measurer = DetectionMeasurer(detector=config.detector, **asdict(config.detections))
+    measurer = VerifiedMeasurer(DetectionMeasurer(detector=config.detector, **asdict(config.detections)))
     return Tracker(measurer, MeasuredSizeFilter(cbt_filter(config, model)))
 
 

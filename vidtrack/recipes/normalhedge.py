@@ -21,6 +21,7 @@ from ..config import option
 from ..filters.box import MeasuredSizeFilter
 from ..filters.score_trackers import GridBayesBoxFilter, NormalHedgeBoxFilter, ParticleBoxFilter
 from ..measure.detectors import make_detector
+from ..measure.verification import VerifiedMeasurer
 from ..tracker import Recipe, Tracker
 
 Detector = Literal["cf", "ncc", "face"]
@@ -66,8 +67,9 @@ def _calibrated(config) -> str | None:
 
 
 def _tracker(detector: str, box_filter) -> Tracker:
-    # the box size follows the detector's scale estimate (the cf detector searches scales)
-    return Tracker(make_detector(detector), MeasuredSizeFilter(box_filter))
+    # the box size follows the detector's scale estimate (the cf detector searches scales); the
+    # verification map (first-frame appearance) is a cue of the calibrated confidence only
+    return Tracker(VerifiedMeasurer(make_detector(detector)), MeasuredSizeFilter(box_filter))
 
 
 def build_nh(config: NormalHedgeConfig, seed=None) -> Tracker:

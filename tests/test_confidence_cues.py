@@ -1,0 +1,110 @@
+"""The confidence cues of the score-map trackers and cbt: appearance verification and the calibrated files."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+from vidtrack.eval.confidence import roc_auc
+from vidtrack.eval.metrics import iou
+from vidtrack.filters import cbt as cbt_filter
+from vidtrack.filters import score_trackers
+from vidtrack.filters.calibration import Calibration, load_calibration
+from vidtrack.filters.confidence_cues import map_value, verification_cues
+from vidtrack.measure.verification import AppearanceVerifier, VerifiedMeasurer
+from vidtrack.recipes import build_tracker
+from vidtrack.types import Box, Estimate, Frame, ScoreMap, TRACKING
+
+from conftest import synthetic_sequence
+
+
+def _around(box: Box, boxes: float) -> Box:
+    """The region of box positions reaching ``boxes`` box sizes on each side of ``box``."""
+    return Box(box.x - boxes * box.w, box.y - boxes * box.h, box.w * (1 + 2 * boxes), box.h * (1 + 2 * boxes))
+
+
+def test_verification_is_high_on_the_target_and_falls_when_the_box_leaves_it():
+    frames, boxes = synthetic_sequence(n=20, size=(200, 150))
+    verifier = AppearanceVerifier()
+    verifier.initialize(frames[0], boxes[0])
+    box = boxes[15]                                  # the target 15 frames later, elsewhere in the frame
+    vmap = verifier.verify(frames[15].image, _around(box, 1.5), box.size)
+    assert isinstance(vmap, ScoreMap) and vmap.stages["colour"].shape == vmap.scores.shape
+    on = verification_cues({"verification": vmap}, box.center)
+    assert on["verify"] > 0.8 and on["verify_gap"] < 0.1
+    for dx, dy in ((1.2, 0.0), (0.0, -1.2), (0.8, 0.8)):     # beside the target: background in the box
+        centre = box.center + np.array([dx * box.w, dy * box.h])
+        off = verification_cues({"verification": vmap}, centre)
+        assert off["verify"] < on["verify"] - 0.4 and off["verify_gap"] > 0.4
+        assert off["colour"] < on["colour"]
+    # the template stays the first frame's: the map's best position is the target's
+    r, c = np.unravel_index(np.argmax(vmap.scores), vmap.scores.shape)
+    assert np.hypot(*(vmap.box_at(r, c).center - box.center)) < 3.0
+
+
+def test_map_value_is_bilinear_and_clamped_to_the_map():
+    smap = ScoreMap(scores=np.array([[0.0, 1.0], [2.0, 3.0]]), origin=(10.0, 20.0), step=2.0, box_size=(4.0, 6.0))
+    assert map_value(smap.scores, smap, (13.0, 24.0)) == pytest.approx(1.5)   # cell (0.5, 0.5)
+    assert map_value(smap.scores, smap, (0.0, 0.0)) == pytest.approx(0.0)     # off the map: its corner
+    assert map_value(smap.scores, smap, (99.0, 99.0)) == pytest.approx(3.0)
+
+
+def test_the_verified_measurer_only_adds_the_verification_stage():
+    frames, boxes = synthetic_sequence(n=6)
+    plain = build_tracker("nh", seed=0).measurer.inner
+    wrapped = VerifiedMeasurer(build_tracker("nh", seed=0).measurer.inner)
+    plain.initialize(frames[0], boxes[0])
+    wrapped.initialize(frames[0], boxes[0])
+    for frame, box in zip(frames[1:], boxes[1:]):
+        prior = Estimate(box, None, 1.0, TRACKING)
+        a, b = plain.measure(frame, prior), wrapped.measure(frame, prior)
+        assert np.array_equal(a.scores, b.scores) and a.origin == b.origin and a.quality == b.quality
+        assert set(b.stages) == set(a.stages) | {"verification"}
+        plain.learn(frame, prior)
+        wrapped.learn(frame, prior)
+
+
+def _vanishing_clip(n: int = 40, gone: int = 20):
+    """The synthetic target, which vanishes at frame ``gone`` (the ground truth keeps moving)."""
+    frames, boxes = synthetic_sequence(n=n, size=(200, 150), velocity=(2.0, 0.5))
+    blank, _ = synthetic_sequence(n=1, size=(200, 150), box=(0, 0, 1, 1))   # the background (and one pixel)
+    frames = [f if k < gone else Frame(k, blank[0].image.copy()) for k, f in enumerate(frames)]
+    return frames, boxes
+
+
+@pytest.mark.parametrize("name", ["nh", "pf", "bayes", "cbt"])
+def test_calibrated_confidence_ranks_the_lost_frames_below_the_tracked_ones(name):
+    frames, boxes = _vanishing_clip()
+    runs = {}
+    for confidence in (name, None):
+        tracker = build_tracker(name, seed=0, confidence=confidence)
+        tracker.initialize(frames[0], boxes[0])
+        runs[confidence] = [tracker.step(f) for f in frames[1:]]
+    states = runs[name]
+    # the calibration changes the confidence only: the boxes and the status are the uncalibrated tracker's
+    assert [s.box.as_array().tolist() for s in states] == [s.box.as_array().tolist() for s in runs[None]]
+    assert [s.status for s in states] == [s.status for s in runs[None]]
+    overlap = iou(np.array([s.box.as_array() for s in states]), np.array([b.as_array() for b in boxes[1:]]))
+    good = overlap > 0.5
+    assert good[:15].all() and not good[-10:].any()
+    confidence = np.array([s.confidence for s in states])
+    assert roc_auc(confidence, good) > 0.9
+    assert np.median(confidence[good]) > 0.5 > np.median(confidence[-10:])
+    assert {"verify", "verify_gap", "colour", "coast"} <= set(states[-1].scalars)
+
+
+@pytest.mark.parametrize(("name", "cues"), [("nh", score_trackers.CUES), ("pf", score_trackers.CUES),
+                                            ("bayes", score_trackers.CUES), ("cbt", cbt_filter.CUES)])
+def test_packaged_files_round_trip_and_name_their_filters_cues(name, cues, tmp_path):
+    cal = load_calibration(name)
+    assert set(cal.cues) <= {c[0] for c in cues} and 0.0 < cal.lost_below < 1.0
+    path = tmp_path / f"{name}.json"
+    path.write_text(json.dumps(cal.to_dict()), encoding="utf-8")
+    again = Calibration.from_dict(json.loads(path.read_text(encoding="utf-8")))
+    assert again.cues == cal.cues and again.lost_below == cal.lost_below
+    rng = np.random.default_rng(0)
+    for _ in range(5):
+        cue = {c[0]: float(rng.uniform(c[2], c[3])) for c in cues}
+        assert again.probability(cue) == pytest.approx(cal.probability(cue), abs=1e-6)
