@@ -62,7 +62,7 @@ OUT = Path(__file__).resolve().parents[1] / "vidtrack" / "filters" / "calibratio
 
 #: The cues the packaged files use, chosen on tune by leave-one-sequence-out.  mil (fit on 12 sequences,
 #: score the 13th, ROC AUC of the pooled held-out probabilities): quality, PSR and inlier coverage
-#: (0.820; all of :data:`~vidtrack.filters.mil.CUES` 0.778, the quality alone 0.691).  The score-map
+#: (0.917; all of :data:`~vidtrack.filters.mil.CUES` 0.898, the quality alone 0.870).  The score-map
 #: trackers and cbt: forward selection on :func:`held_out_auc`.  nh: the running first-frame verification
 #: and the colour likelihood (0.905; the uncalibrated confidence 0.694, all of
 #: :data:`~vidtrack.filters.score_trackers.CUES` 0.898); pf: the running colour likelihood and the
