@@ -5,7 +5,7 @@ Each table is made from the ``summary.json`` of one ``vidtrack eval`` run per
 split and random seed (the *tune* and *validate* splits of the shared
 sequences' ``INDEX.md``): the mean success AUC, PASCAL score, precision@20
 and fps per tracker, the success AUC per sequence, and whether the confidence
-can be trusted (lost / false lost / missed loss / ROC AUC).  Under each table
+can be trusted (lost / false lost / missed loss / ROC AUC / ECE).  Under each table
 stand the exact commands, the vidtrack version, the git commit and the date.
 
 Run the evaluations and write the tables (one ``vidtrack eval`` process at a
@@ -61,7 +61,8 @@ CONFIDENCE_DOC = (
     "Frames of all the split's sequences pooled, init frame excluded. lost: fraction of frames marked lost; "
     "false lost: of those, the fraction whose box still overlaps the target (IoU > 0); missed loss: of the "
     "frames marked tracking, the fraction with IoU = 0; ROC AUC: the confidence as a predictor of IoU > 0.5 "
-    "(0.5 = chance). The `(OpenCV ok flag)` rows score OpenCV's own update() flag instead of vidtrack's "
+    "(0.5 = chance); ECE: expected calibration error of the confidence read as P(IoU > 0.5) (ten equal-width "
+    "bins; `report.html` of each run draws its reliability diagram). The `(OpenCV ok flag)` rows score OpenCV's own update() flag instead of vidtrack's "
     "confidence.")
 
 
@@ -278,7 +279,7 @@ def split_section(split: str, runs: list[dict]) -> str:
         per_sequence.append([q, *cells])
     per_sequence.append(["**mean**", *(_per_seed(values(t, "auc"), 3) for t in trackers)])
     confidence = []
-    keys = ("lost_rate", "false_lost", "missed_loss", "confidence_auc")
+    keys = ("lost_rate", "false_lost", "missed_loss", "confidence_auc", "ece")
     for t in trackers:
         confidence.append([f"`{t}`", *(_per_seed(values(t, k), 3) for k in keys)])
         flags = [row(t, s).get("ok_flag") for s in seeds]
@@ -293,7 +294,7 @@ def split_section(split: str, runs: list[dict]) -> str:
         f"### Success AUC per sequence ({seed_label})",
         _markdown(["sequence", *(f"`{t}`" for t in trackers)], per_sequence), caption,
         f"### Confidence ({seed_label})",
-        _markdown(["tracker", "lost", "false lost", "missed loss", "ROC AUC"], confidence), caption,
+        _markdown(["tracker", "lost", "false lost", "missed loss", "ROC AUC", "ECE"], confidence), caption,
     ])
 
 
