@@ -30,7 +30,7 @@ from ..errors import UsageError
 from ..types import LOST, TRACKING, Box, Detections, Estimate, Frame, Measurement
 from .calibration import load_calibration
 from .cbt_model import CBTModel
-from .confidence_cues import RunningCues, verification_cues
+from .confidence_cues import RUNNING_CUES, VERIFICATION_CUES, RunningCues, verification_cues
 from .channels import mean_field_update, product_likelihood
 
 #: The calibrated confidence's cues: (name, value when missing, lower, upper); see :class:`CBTFilter`
@@ -45,11 +45,8 @@ CUES = (
     ("psr", 0.0, 0.0, 30.0),
     ("motion", 0.0, 0.0, 2.0),
     ("coast", 0.0, 0.0, 6.0),
-    ("verify", 0.0, -1.0, 1.0),
-    ("verify_gap", 0.0, 0.0, 2.0),
-    ("colour", 0.5, 0.0, 1.0),
-    ("verify_mean", 0.0, -1.0, 1.0),
-    ("colour_mean", 0.5, 0.0, 1.0),
+    *VERIFICATION_CUES,
+    *RUNNING_CUES,
 )
 
 #: Largest memory, in MB, the position grid's transition tensors may take (both axes, with the temporaries

@@ -30,6 +30,19 @@ from scipy.ndimage import map_coordinates
 from ..types import ScoreMap
 
 
+#: The verification cues' rows of a tracker's cue table: (name, value when missing, lower, upper)
+VERIFICATION_CUES = (
+    ("verify", 0.0, -1.0, 1.0),
+    ("verify_gap", 0.0, 0.0, 2.0),
+    ("colour", 0.5, 0.0, 1.0),
+)
+#: The rows of their running averages (:class:`RunningCues`)
+RUNNING_CUES = (
+    ("verify_mean", 0.0, -1.0, 1.0),
+    ("colour_mean", 0.5, 0.0, 1.0),
+)
+
+
 def map_value(scores: np.ndarray, smap: ScoreMap, centre) -> float:
     """Bilinear value of ``scores`` (the geometry of ``smap``) at the box centred on ``centre``, clamped to the map."""
     scores = np.asarray(scores, dtype=float)

@@ -57,7 +57,7 @@ from scipy.ndimage import map_coordinates
 
 from ..types import LOST, TRACKING, Box, Estimate, Frame, Measurement, ScoreMap
 from .calibration import load_calibration
-from .confidence_cues import RunningCues, score_map_cues, verification_cues
+from .confidence_cues import RUNNING_CUES, VERIFICATION_CUES, RunningCues, score_map_cues, verification_cues
 from .grid_bayes import gaussian_transition, grid_predict_separable, grid_update_log
 from .normalhedge import NormalHedgeTracker, weight_concentration
 from .particle import ParticleFilter, weighted_mean_cov
@@ -81,15 +81,12 @@ CUES = (
     ("motion", 0.0, 0.0, 2.0),
     ("mass_quality", 0.0, 0.0, 1.0),
     ("coast", 0.0, 0.0, 6.0),
-    ("verify", 0.0, -1.0, 1.0),
-    ("verify_gap", 0.0, 0.0, 2.0),
-    ("colour", 0.5, 0.0, 1.0),
+    *VERIFICATION_CUES,
     ("score_at", 0.0, -1.0, 1.0),
     ("peak_offset", 0.0, 0.0, 3.0),
     ("log_scale", 0.0, 0.0, 2.0),
     ("spread", 2.0, 0.0, 2.0),
-    ("verify_mean", 0.0, -1.0, 1.0),
-    ("colour_mean", 0.5, 0.0, 1.0),
+    *RUNNING_CUES,
 )
 
 
