@@ -63,15 +63,16 @@ OUT = Path(__file__).resolve().parents[1] / "vidtrack" / "filters" / "calibratio
 #: The cues the packaged files use, chosen on tune by leave-one-sequence-out.  mil (fit on 12 sequences,
 #: score the 13th, ROC AUC of the pooled held-out probabilities): quality, PSR and inlier coverage
 #: (0.917; all of :data:`~vidtrack.filters.mil.CUES` 0.898, the quality alone 0.870).  The score-map
-#: trackers and cbt: forward selection on :func:`held_out_auc`.  nh: the running first-frame verification
-#: and the colour likelihood (0.905; the uncalibrated confidence 0.694, all of
-#: :data:`~vidtrack.filters.score_trackers.CUES` 0.898); pf: the running colour likelihood and the
-#: particles' spread (0.923; 0.734, all 0.792); bayes: the running verification and colour likelihood
-#: (0.935; 0.753, all 0.918); cbt: the running verification, the mode mass and the verification gap (0.859; the
-#: uncalibrated confidence 0.654, all of :data:`~vidtrack.filters.cbt.CUES` 0.802).
+#: trackers and cbt: forward selection on :func:`held_out_auc`.  nh: the running first-frame verification,
+#: the colour likelihood and the size gap (0.910; without the size gap 0.905, the uncalibrated confidence
+#: 0.694, all of :data:`~vidtrack.filters.score_trackers.CUES` 0.904); pf: the running colour likelihood,
+#: the particles' spread and the size gap (0.933; without the size gap 0.923, the uncalibrated confidence
+#: 0.734, all 0.784); bayes: the running verification and colour likelihood
+#: (0.935; 0.753, all 0.913); cbt: the running verification, the mode mass and the verification gap (0.859; the
+#: uncalibrated confidence 0.654, all of :data:`~vidtrack.filters.cbt.CUES` 0.805).
 MIL_CUES = tuple(c for c in mil_filter.CUES if c[0] in ("quality", "psr", "inlier_coverage"))
-NH_CUES = tuple(c for c in score_trackers.CUES if c[0] in ("verify_mean", "colour"))
-PF_CUES = tuple(c for c in score_trackers.CUES if c[0] in ("colour_mean", "spread"))
+NH_CUES = tuple(c for c in score_trackers.CUES if c[0] in ("verify_mean", "colour", "verify_size_gap"))
+PF_CUES = tuple(c for c in score_trackers.CUES if c[0] in ("colour_mean", "spread", "verify_size_gap"))
 BAYES_CUES = tuple(c for c in score_trackers.CUES if c[0] in ("verify_mean", "colour_mean"))
 CBT_CUES = tuple(c for c in cbt_filter.CUES if c[0] in ("verify_mean", "mode_mass", "verify_gap"))
 

@@ -15,7 +15,7 @@ from vidtrack.filters.calibration import Calibration, load_calibration
 from vidtrack.filters.confidence_cues import map_value, verification_cues
 from vidtrack.measure.verification import AppearanceVerifier, VerifiedMeasurer
 from vidtrack.recipes import build_tracker
-from vidtrack.types import Box, Estimate, Frame, ScoreMap, TRACKING
+from vidtrack.types import Box, Detections, Estimate, Frame, ScoreMap, TRACKING
 
 from conftest import synthetic_sequence
 
@@ -42,6 +42,28 @@ def test_verification_is_high_on_the_target_and_falls_when_the_box_leaves_it():
     # the template stays the first frame's: the map's best position is the target's
     r, c = np.unravel_index(np.argmax(vmap.scores), vmap.scores.shape)
     assert np.hypot(*(vmap.box_at(r, c).center - box.center)) < 3.0
+
+
+def test_the_size_gap_is_positive_for_a_box_of_the_wrong_size():
+    class SizeOfThePrior:   # a measurer stating no box size: the verification takes the prior's
+        def initialize(self, frame, box):
+            pass
+
+        def measure(self, frame, prior):
+            return Detections(points=np.zeros((0, 2)), scores=np.zeros(0))
+
+    frames, boxes = synthetic_sequence(n=20, size=(200, 150))
+    measurer = VerifiedMeasurer(SizeOfThePrior())
+    measurer.initialize(frames[0], boxes[0])
+    box = boxes[15]
+    gaps = {}
+    for factor in (0.6, 1.0, 1.6):     # a prior (and so a measured size) too small, right, too large
+        prior = Estimate(Box.from_center(*box.center, *(factor * box.size)), None, 1.0, TRACKING)
+        stages = measurer.measure(frames[15], prior).stages
+        assert len(stages["verification"].stages["sizes"]) == len(measurer.size_factors)
+        gaps[factor] = verification_cues(stages, box.center)["verify_size_gap"]
+    assert gaps[1.0] < 0.0                         # the first frame's size matches best at the target
+    assert gaps[0.6] > 0.1 and gaps[1.6] > 0.1     # a larger (smaller) box at the same centre matches better
 
 
 def test_map_value_is_bilinear_and_clamped_to_the_map():

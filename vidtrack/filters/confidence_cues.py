@@ -11,6 +11,9 @@ here, from what the measurer put in the measurement:
   first frame's grey template NCC and colour likelihood of the reported box;
   ``verify_gap``: the map's best NCC minus the estimate's (a better match
   elsewhere in the region: the box sits beside the target);
+  ``verify_size_gap``: the best NCC of a box of another size at the same
+  centre (``stages["sizes"]`` of the verification map) minus the
+  estimate's (a box of another size looks more like the target: the size is wrong);
 * ``score_at``: the detector's score map (divided by its peak) at the
   estimate's centre, ``peak_offset`` the distance from the map's peak to
   the estimate in box sizes;
@@ -34,6 +37,7 @@ from ..types import ScoreMap
 VERIFICATION_CUES = (
     ("verify", 0.0, -1.0, 1.0),
     ("verify_gap", 0.0, 0.0, 2.0),
+    ("verify_size_gap", 0.0, -2.0, 2.0),
     ("colour", 0.5, 0.0, 1.0),
 )
 #: The rows of their running averages (:class:`RunningCues`)
@@ -56,12 +60,18 @@ def map_value(scores: np.ndarray, smap: ScoreMap, centre) -> float:
 
 
 def verification_cues(stages: Mapping, centre) -> dict[str, float]:
-    """``verify``, ``verify_gap`` and ``colour`` at ``centre`` from ``stages["verification"]`` (empty without it)."""
+    """``verify``, ``verify_gap``, ``verify_size_gap`` and ``colour`` at ``centre`` from ``stages["verification"]``.
+
+    Empty without a verification map.
+    """
     ver = stages.get("verification")
     if not isinstance(ver, ScoreMap) or ver.scores.size == 0:
         return {}
     out = {"verify": map_value(ver.scores, ver, centre)}
     out["verify_gap"] = float(np.max(ver.scores)) - out["verify"]
+    sizes = [m for m in ver.stages.get("sizes", ()) if m.scores.size]
+    if sizes:
+        out["verify_size_gap"] = max(map_value(m.scores, m, centre) for m in sizes) - out["verify"]
     colour = ver.stages.get("colour")
     if colour is not None:
         out["colour"] = map_value(colour, ver, centre)

@@ -37,9 +37,9 @@ the ``concentration``, the ``motion`` of the estimate in box sizes,
 ``coast`` ``log(1 + n)`` after ``n`` skipped updates, ``spread`` the
 estimate's standard deviation in box sizes, and the cues of
 :mod:`vidtrack.filters.confidence_cues` read at the estimate: the first-frame
-verification ``verify``, ``verify_gap``, ``colour`` and their running
-averages, the map's ``score_at``, ``peak_offset`` and ``log_scale``; the
-packaged files use two cues each, chosen on *tune*, see
+verification ``verify``, ``verify_gap``, ``verify_size_gap``, ``colour`` and
+their running averages, the map's ``score_at``, ``peak_offset`` and
+``log_scale``; the packaged files use two or three cues each, chosen on *tune*, see
 ``scripts/fit_confidence.py``); the status stays ``lost`` when the update was
 skipped (the file's threshold is the probability of such a frame, and it
 starts the detector's re-detection).  Each

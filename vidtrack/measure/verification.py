@@ -91,12 +91,12 @@ class AppearanceVerifier:
         h_o, h_b = h_o / h_o.sum(), h_b / h_b.sum()
         self.likelihood_ = ((h_o + 1e-4) / (h_o + h_b + 2e-4)).astype(np.float32)
 
-    def verify(self, image: np.ndarray, region: Box, box_size) -> ScoreMap:
+    def verify(self, image: np.ndarray, region: Box, box_size, *, colour: bool = True) -> ScoreMap:
         """The verification map of the boxes of ``box_size`` whose top-left corners lie in ``region``.
 
         ``region`` covers the box positions (it is the union of the boxes);
         the map's scores are the template NCC in ``[-1, 1]`` and its
-        ``stages["colour"]`` the mean colour likelihood in ``[0, 1]``.
+        ``stages["colour"]`` the mean colour likelihood in ``[0, 1]`` (with ``colour``).
         """
         s = self._scale(box_size)
         tw, th = self._template_size(box_size, s)
@@ -119,18 +119,20 @@ class AppearanceVerifier:
         grey = (patch if patch.ndim == 2 else cv2.cvtColor(patch, cv2.COLOR_BGR2GRAY)).astype(np.float32)
         ncc = cv2.matchTemplate(grey, template, cv2.TM_CCOEFF_NORMED)
         ncc = np.clip(np.nan_to_num(ncc, nan=0.0, posinf=0.0, neginf=0.0), -1.0, 1.0)
-        if self.colour_ and patch.ndim == 2:   # a grey frame in a colour video: no colour evidence
-            colour = np.full(ncc.shape, 0.5, np.float32)
+        if not colour:
+            stages = {}
+        elif self.colour_ and patch.ndim == 2:   # a grey frame in a colour video: no colour evidence
+            stages = {"colour": np.full(ncc.shape, 0.5, np.float32)}
         else:
             if not self.colour_ and patch.ndim == 3:
                 patch = cv2.cvtColor(patch, cv2.COLOR_BGR2GRAY)
             idx = colour_indices(patch, self.bins if self.colour_ else self.bins ** 2)
-            colour = box_means(self.likelihood_[idx], (tw, th))
+            stages = {"colour": box_means(self.likelihood_[idx], (tw, th))}
         step = w / float(ow)
         return ScoreMap(scores=ncc.astype(np.float32), origin=(float(x0), float(y0)), step=step,
                         box_size=(tw * step, th * step), quality=float(ncc.max()),
                         search_region=Box(float(x0), float(y0), float(w), float(h)),
-                        stages={"colour": colour})
+                        stages=stages)
 
 
 def measurement_box_size(measurement: Measurement, prior: Estimate):
@@ -144,8 +146,11 @@ class VerifiedMeasurer:
 
     The map covers the boxes whose centres lie within ``margin`` box sizes of
     the prior's centre (the box size is the measurement's when it states one,
-    else the prior's).  The measurement is otherwise unchanged, so a
-    tracker's boxes do not depend on the wrapper.
+    else the prior's).  Its ``stages["sizes"]`` holds the NCC maps of the
+    same centres for boxes ``size_factors`` times that size, so a filter can
+    ask whether a box of another size at its estimate looks more like the
+    first frame's target (the box has the wrong size).  The measurement is
+    otherwise unchanged, so a tracker's boxes do not depend on the wrapper.
 
     Parameters
     ----------
@@ -155,11 +160,15 @@ class VerifiedMeasurer:
         Reach of the map around the prior's centre, in box sizes.
     template_side, bins
         As in :class:`AppearanceVerifier`.
+    size_factors
+        The other box sizes matched, as factors of the measured size.
     """
 
-    def __init__(self, inner, margin: float = 1.0, template_side: int = 16, bins: int = 8) -> None:
+    def __init__(self, inner, margin: float = 1.0, template_side: int = 16, bins: int = 8,
+                 size_factors: tuple[float, ...] = (0.8, 1.25)) -> None:
         self.inner = inner
         self.margin = margin
+        self.size_factors = size_factors
         self.verifier = AppearanceVerifier(template_side=template_side, bins=bins)
 
     def initialize(self, frame: Frame, box: Box) -> None:
@@ -170,13 +179,18 @@ class VerifiedMeasurer:
         measurement = self.inner.measure(frame, prior)
         if measurement is None:
             return None
-        size = measurement_box_size(measurement, prior)
-        m = self.margin
-        cx, cy = prior.box.center
-        region = Box(cx - (0.5 + m) * size[0], cy - (0.5 + m) * size[1], (1 + 2 * m) * size[0],
-                     (1 + 2 * m) * size[1])
-        stages = {**measurement.stages, "verification": self.verifier.verify(frame.image, region, size)}
-        return replace(measurement, stages=stages)
+        size = np.asarray(measurement_box_size(measurement, prior))
+        centre = prior.box.center
+        verification = self.verifier.verify(frame.image, self._region(centre, size, size), tuple(size))
+        verification.stages["sizes"] = tuple(
+            self.verifier.verify(frame.image, self._region(centre, size, f * size), tuple(f * size), colour=False)
+            for f in self.size_factors)
+        return replace(measurement, stages={**measurement.stages, "verification": verification})
+
+    def _region(self, centre, size: np.ndarray, box_size: np.ndarray) -> Box:
+        """The union of the ``box_size`` boxes centred within ``margin`` sizes ``size`` of ``centre``."""
+        reach = self.margin * size + 0.5 * box_size
+        return Box(centre[0] - reach[0], centre[1] - reach[1], 2 * reach[0], 2 * reach[1])
 
     def learn(self, frame: Frame, posterior: Estimate) -> None:
         self.inner.learn(frame, posterior)
