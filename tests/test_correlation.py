@@ -1,10 +1,12 @@
 """The correlation-filter detector: known shifts, scale change, quality on clutter, re-detection."""
 
+import copy
 from dataclasses import fields
 
 import cv2
 import numpy as np
 import pytest
+from scipy import fft
 
 from vidtrack.errors import UsageError
 from vidtrack.measure.correlation import CorrelationConfig, CorrelationFilter
@@ -144,6 +146,40 @@ def test_constrained_filter_solves_the_masked_ridge_regression():
     assert np.sum((masked - y) ** 2) < 0.8 * np.sum((cut_response - y) ** 2)
 
 
+def test_constrained_filter_equals_the_plain_admm_iteration_also_as_the_penalty_grows():
+    """The loop computes the terms that depend on the penalty alone once per penalty; the iterates are those
+    of BACF's eqs. 11-13 written out term by term."""
+    rng = np.random.default_rng(3)
+    shape = (12, 14)
+    x = np.fft.rfft2(rng.normal(size=(*shape, 3)).astype(np.float32), axes=(0, 1))
+    yf = np.fft.rfft2(gaussian_response(shape, 1.5).astype(np.float32))
+    mask = np.zeros(shape, np.float32)
+    mask[3:9, 4:10] = 1
+
+    def plain(mu, mu_step, iterations, lam=1e-2):
+        T = float(shape[0] * shape[1])
+        y = yf[:, :, None]
+        s_xx = np.sum(x.real ** 2 + x.imag ** 2, axis=2, keepdims=True)
+        mu = mu * float(np.mean(s_xx)) / T
+        mu_max = 1e4 * mu
+        h = zeta = np.zeros_like(x)
+        for _ in range(iterations):
+            b = s_xx + T * mu
+            s_zx = np.sum(np.conj(x) * zeta, axis=2, keepdims=True)
+            s_hx = np.sum(np.conj(x) * h, axis=2, keepdims=True)
+            g = (y * x) / (T * mu) - zeta / mu + h - x * ((s_xx * y) / (T * mu) - s_zx / mu + s_hx) / b
+            h = fft.rfft2(fft.irfft2(mu * g + zeta, s=shape, axes=(0, 1)) * (T / (mu * T + lam))
+                          * mask[:, :, None], axes=(0, 1))
+            zeta = zeta + mu * (g - h)
+            mu = min(mu_step * mu, mu_max)
+        return g, h, zeta
+
+    for mu_step in (1.0, 2.0):
+        ours = constrained_filter(x, yf, mask, shape, iterations=4, mu=0.01, mu_step=mu_step)
+        for a, b in zip(ours, plain(0.01, mu_step, 4)):
+            assert np.allclose(a, b, rtol=1e-5, atol=1e-5 * np.abs(b).max())
+
+
 def test_constrained_filter_follows_a_small_target_the_static_background_outweighs():
     """A thin target crossing a textured static background: the wide-window DSST filter learns the
     background and stays behind; the constrained filter (BACF) follows to a pixel or two."""
@@ -218,6 +254,29 @@ def _detected_once(constrained, reuse, img0, img1, box0):
     cf.initialize(img0, box0)
     cf.detect(img1, box0.center, box0.size)
     return cf
+
+
+def test_a_window_cut_beforehand_gives_the_same_detection_and_the_same_learning():
+    """``mil`` cuts the filter's search window on its main thread while the second one learns: detecting with
+    that window is detecting without it, and the filter learns the same from either detection."""
+    rng = np.random.default_rng(5)
+    img0, patch = scene(rng, (150, 110), (40, 48))
+    img1, _ = scene(rng, (155, 113), (40, 48), patch)
+    box0 = Box.from_center(150, 110, 40, 48)
+    cf = CorrelationFilter(CorrelationConfig())
+    cf.initialize(img0, box0)
+    window = cf.window(img1, box0.center, box0.size)      # cut before the filter's last update
+    twin = copy.deepcopy(cf)
+    for f in (cf, twin):
+        f.update(img0, box0)
+    plain, prepared = cf.detect(img1, box0.center, box0.size), twin.detect(img1, box0.center, box0.size,
+                                                                             window=window)
+    for field in fields(plain):
+        assert np.array_equal(getattr(plain, field.name), getattr(prepared, field.name)), field.name
+    learned = Box.from_center(*plain.centre, *plain.size)
+    cf.update(img1, learned)
+    twin.update(img1, learned)
+    assert np.array_equal(cf.filter_fft_, twin.filter_fft_)
 
 
 @pytest.mark.parametrize("constrained", [False, True])

@@ -236,29 +236,42 @@ class CorrelationFilter:
         if c.quality_from == "target":
             self.target_filter_fft_ = fft.rfft2(self.spatial_filter(target_only=True), axes=(0, 1))
 
-    def respond(self, image: np.ndarray, centre, box_size, scale: float = 1.0) -> tuple[np.ndarray, np.ndarray, tuple]:
-        """The circular response of the window of ``box_size * scale`` around ``centre``, its spectrum and sample.
+    def window(self, image: np.ndarray, centre, box_size, scale: float = 1.0) -> tuple:
+        """The sample :meth:`respond` correlates: ``(centre, size, patch, raw cell features, colour bins, spectrum)``.
 
-        The sample ``(centre, size, patch, raw cell features, colour bins)`` is
-        what :meth:`update` reuses (``reuse_sample``).
-
-        With ``colour_merge`` the response is Staple's merge (eq. 22) of the
-        filter's and the colour histograms' (at the same shifts).
+        It depends on the image and the filter's fixed layout alone, not on
+        what the filter has learned, so it may be cut while an :meth:`update`
+        is still running (``mil`` cuts it on its main thread while the second
+        thread learns).
         """
         c = self.config
         size = np.asarray(box_size, float) * scale
         patch = self.patch(image, centre, size)
         raw = cell_features(patch, cell=c.cell, colour=c.colour)
         z = fft.rfft2(self.taper(raw), axes=(0, 1))
+        index = colour_bins(patch, self.colour_model_.bins) if self.colour_model_ is not None else None
+        return np.asarray(centre, float), size, patch, raw, index, z
+
+    def respond(self, image: np.ndarray, centre, box_size, scale: float = 1.0, *, window: tuple | None = None
+                ) -> tuple[np.ndarray, np.ndarray, tuple]:
+        """The circular response of the window of ``box_size * scale`` around ``centre``, its spectrum and sample.
+
+        The sample ``(centre, size, patch, raw cell features, colour bins)`` is
+        what :meth:`update` reuses (``reuse_sample``); ``window``, the same
+        window's :meth:`window` when already cut.
+
+        With ``colour_merge`` the response is Staple's merge (eq. 22) of the
+        filter's and the colour histograms' (at the same shifts).
+        """
+        c = self.config
+        centre, size, patch, raw, index, z = self.window(image, centre, box_size, scale) if window is None else window
         response = correlation_response(self.filter_fft_, z, self.shape_)
-        index = None
         if self.colour_model_ is not None:
-            index = colour_bins(patch, self.colour_model_.bins)
             colour = self.colour_model_.response(patch, self.box_cells_ * c.cell, self.shape_, c.cell,
                                                  index=index)
             a = c.colour_merge
             response = fft.ifftshift((1.0 - a) * fft.fftshift(response) + a * colour)
-        return response, z, (np.asarray(centre, float), size, patch, raw, index)
+        return response, z, (centre, size, patch, raw, index)
 
     def _reusable_shift(self, sample, box: Box) -> np.ndarray | None:
         """The shift ``(dx, dy)`` in cells from ``sample``'s window centre to ``box``, if the window can be reused."""
@@ -277,14 +290,17 @@ class CorrelationFilter:
         c = self.config
         return float(np.clip((psr - c.psr_low) / (c.psr_high - c.psr_low), 0.0, 1.0))
 
-    def detect(self, image: np.ndarray, centre, box_size, *, scales: tuple[float, ...] | None = None
-               ) -> CorrelationResult:
-        """Search the window around ``centre`` at each scale; the best peak is the detection."""
+    def detect(self, image: np.ndarray, centre, box_size, *, scales: tuple[float, ...] | None = None,
+               window: tuple | None = None) -> CorrelationResult:
+        """Search the window around ``centre`` at each scale; the best peak is the detection.
+
+        ``window``: the scale-1 window's :meth:`window`, when already cut.
+        """
         c = self.config
         scales = c.scale_factors if scales is None else scales
         best = None
         for s in scales:
-            response, z, sample = self.respond(image, centre, box_size, s)
+            response, z, sample = self.respond(image, centre, box_size, s, window=window if s == 1.0 else None)
             shift, index, peak = subpixel_peak(response)
             score = peak * (1.0 if s == 1.0 else c.scale_penalty)
             if best is None or score > best[0]:

@@ -120,12 +120,18 @@ def constrained_filter(model_fft: np.ndarray, target_fft: np.ndarray, mask: np.n
     g = np.zeros_like(x)
     h, zeta = (np.zeros_like(x), np.zeros_like(x)) if start is None else start
     m = mask.astype(np.float32)[:, :, None]
+    x_conj = np.conj(x)
+    yx, s_xx_y = y * x, s_xx * y
+    terms_mu = None
     for _ in range(iterations):
-        b = s_xx + T * mu
-        s_zx = np.sum(np.conj(x) * zeta, axis=2, keepdims=True)
-        s_hx = np.sum(np.conj(x) * h, axis=2, keepdims=True)
-        g = ((y * x) / (T * mu) - zeta / mu + h
-             - x * ((s_xx * y) / (T * mu) - s_zx / mu + s_hx) / b)                           # eq. 11
+        if terms_mu != mu:   # the terms that depend on the penalty alone, again only when it has grown
+            b = s_xx + T * mu
+            yx_mu, s_xx_y_mu = yx / (T * mu), s_xx_y / (T * mu)
+            terms_mu = mu
+        s_zx = np.sum(x_conj * zeta, axis=2, keepdims=True)
+        s_hx = np.sum(x_conj * h, axis=2, keepdims=True)
+        g = (yx_mu - zeta / mu + h
+             - x * (s_xx_y_mu - s_zx / mu + s_hx) / b)                                        # eq. 11
         spatial = fft.irfft2(mu * g + zeta, s=shape, axes=(0, 1)) * (T / (mu * T + lam))  # eq. 12
         h = fft.rfft2(spatial * m, axes=(0, 1))
         zeta = zeta + mu * (g - h)                                                           # eq. 13

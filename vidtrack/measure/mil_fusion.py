@@ -42,8 +42,10 @@ the posterior box of confident frames.  What the filter adds, each part of
 
 Speed, without changing a result: the filter's update from the last frame
 and its detection in this one run on a second thread
-(:class:`~vidtrack.measure.threads.SecondThread`) while this one computes
-the superpixels, the SVM scores and the graph cut; the per-pixel loops (SLIC,
+(:class:`~vidtrack.measure.threads.SecondThread`) while this one cuts the
+filter's search window (it does not depend on what the filter learns) and
+computes the superpixels, the SVM scores, the graph cut and the inlier box;
+only the fusion waits for the filter.  The per-pixel loops (SLIC,
 the descriptors, the inliers' peak, HOG, the colour model, Pegasos) are
 compiled with Numba and release the GIL, so both threads really run.
 """
@@ -59,7 +61,7 @@ import numpy as np
 from ..config import option
 from ..types import LOST, Box, Estimate, Frame, Superpixels
 from .correlation import CorrelationConfig, CorrelationFilter, CorrelationResult
-from .mil import GraphCutConfig, InlierBox, MILAppearance, SuperpixelConfig, SVMConfig
+from .mil import GraphCutConfig, InlierBox, InlierSearch, MILAppearance, SuperpixelConfig, SVMConfig
 from .threads import SecondThread, tic
 
 
@@ -223,12 +225,19 @@ class MILMeasurer:
         self.lost_run_ = self.lost_run_ + 1 if searching else 0
         whole_frame = (searching and f.redetect and self.lost_run_ >= f.global_after
                        and self.lost_run_ % max(f.global_every, 1) == 0)
-        # the correlation filter (on the second thread) and the superpixel side run side by side
+        # the correlation filter (on the second thread) and the superpixel side run side by side; the
+        # filter's window is cut here, while the second thread may still be learning from the last frame
         if self.cf_ is not None:
-            self.tasks_.append(self.worker_.submit(self._correlate, frame, prior, whole_frame))
+            window = None
+            if not whole_frame:
+                t0 = time.perf_counter()
+                window = self.cf_.window(frame.image, prior.box.center, prior.box.size)
+                tic(self.timings_, "correlation window", t0)
+            self.tasks_.append(self.worker_.submit(self._correlate, frame, prior, whole_frame, window))
         if self.appearance_ is None:
             return self._correlation_alone(prior)
         found = self.appearance_.search(frame, prior, sigma, searching=searching)
+        inlier, stages = self._inlier_stages(found)   # all that does not need the filter, before waiting for it
         cf = self._wait_correlation()
         self.cf_result_ = cf
         if (cf is not None and f.redetect and searching and cf.quality >= f.reacquire
@@ -236,17 +245,12 @@ class MILMeasurer:
             # re-detection: the correlation filter proposes, the superpixels and the SVM verify there
             prior = replace(prior, box=Box.from_center(*cf.centre, *prior.box.size))
             found = self.appearance_.search(frame, prior, sigma, searching=searching)
+            inlier, stages = self._inlier_stages(found)
         if found is None:
             return None
-        inlier = self.appearance_.inlier_box(found)
         box, quality = (None, 0.0) if inlier is None else self._fuse(inlier, cf, prior)
         self.last_ = found
         labels, scores, inliers = found.labels, found.scores, found.inliers
-        stages = {
-            "superpixels": labels,
-            "svm_scores": scores[labels].astype(np.float32),
-            "inliers": inliers[labels].astype(np.uint8),
-        }
         if cf is not None:
             stages["correlation"] = cf.response.astype(np.float32)
             stages["psr"] = float(cf.psr)
@@ -304,6 +308,17 @@ class MILMeasurer:
                            stages={"correlation": cf.response.astype(np.float32), "psr": float(cf.psr)},
                            present=bool(present))
 
+    def _inlier_stages(self, found: InlierSearch | None) -> tuple[InlierBox | None, dict]:
+        """The inlier box of a superpixel search and its per-pixel stages (superpixels, SVM scores, inliers)."""
+        if found is None:
+            return None, {}
+        labels = found.labels
+        return self.appearance_.inlier_box(found), {
+            "superpixels": labels,
+            "svm_scores": found.scores[labels].astype(np.float32),
+            "inliers": found.inliers[labels].astype(np.uint8),
+        }
+
     def _fuse(self, inlier: InlierBox, cf: CorrelationResult | None, prior: Estimate) -> tuple[Box, float]:
         """The measured box and its quality: the inlier centre moved by the correlation peak, the size from ``size_from``."""
         f = self.config.fusion
@@ -345,7 +360,8 @@ class MILMeasurer:
         self.cf_.update(image, box)
         self._background_tic("correlation", t0)
 
-    def _correlate(self, frame: Frame, prior: Estimate, whole_frame: bool) -> CorrelationResult:
+    def _correlate(self, frame: Frame, prior: Estimate, whole_frame: bool, window: tuple | None = None
+                   ) -> CorrelationResult:
         """The correlation filter's detection around the prior; with ``whole_frame``, around the frame's best peak.
 
         ``measure`` asks for the whole frame after ``global_after`` lost
@@ -353,7 +369,9 @@ class MILMeasurer:
         over the whole frame and the window is searched around its best peak.
         Before that a loss is taken for an occlusion: only the window around
         the prediction is searched.  Runs on the second thread: it reads only
-        its arguments and the filter.
+        its arguments and the filter.  ``window``: the filter's
+        :meth:`~vidtrack.measure.correlation.CorrelationFilter.window` around
+        the prior, already cut.
         """
         t0 = time.perf_counter()
         size = prior.box.size
@@ -362,6 +380,6 @@ class MILMeasurer:
             centre_, region = global_region(np.array([frame.width, frame.height], float), centre, size,
                                             self.config.fusion.global_boxes)
             centre = self.cf_.search(frame.image, centre_, region, size).centre   # target only: no stale context
-        result = self.cf_.detect(frame.image, centre, size)
+        result = self.cf_.detect(frame.image, centre, size, window=window)
         self._background_tic("correlation", t0)
         return result
