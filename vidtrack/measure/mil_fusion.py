@@ -42,10 +42,11 @@ the posterior box of confident frames.  What the filter adds, each part of
 
 Speed, without changing a result: the filter's update from the last frame
 and its detection in this one run on a second thread
-(:class:`~vidtrack.measure.threads.SecondThread`) while this one cuts the
-filter's search window (it does not depend on what the filter learns) and
-computes the superpixels, the SVM scores, the graph cut and the inlier box;
-only the fusion waits for the filter.  The per-pixel loops (SLIC,
+(:class:`~vidtrack.measure.threads.SecondThread`) while this one computes
+the superpixels, the SVM scores, the graph cut and the inlier box; only the
+fusion waits for the filter.  When the second thread is still learning as a
+frame arrives, this one also cuts the filter's search window (which does
+not depend on what the filter learns).  The per-pixel loops (SLIC,
 the descriptors, the inliers' peak, HOG, the colour model, Pegasos) are
 compiled with Numba and release the GIL, so both threads really run.
 """
@@ -225,11 +226,11 @@ class MILMeasurer:
         self.lost_run_ = self.lost_run_ + 1 if searching else 0
         whole_frame = (searching and f.redetect and self.lost_run_ >= f.global_after
                        and self.lost_run_ % max(f.global_every, 1) == 0)
-        # the correlation filter (on the second thread) and the superpixel side run side by side; the
-        # filter's window is cut here, while the second thread may still be learning from the last frame
+        # the correlation filter (on the second thread) and the superpixel side run side by side; while the
+        # second thread is still learning from the last frame, the filter's window is cut here
         if self.cf_ is not None:
             window = None
-            if not whole_frame:
+            if not whole_frame and any(not task.done() for task in self.tasks_):
                 t0 = time.perf_counter()
                 window = self.cf_.window(frame.image, prior.box.center, prior.box.size)
                 tic(self.timings_, "correlation window", t0)
