@@ -79,3 +79,14 @@ def test_the_compiled_iterations_are_pegasos_step_repeated(batch_size):
         total += w
     assert np.allclose(svm.coef_, w, rtol=1e-12, atol=1e-12)
     assert np.allclose(svm.avg_coef_, total / 25, rtol=1e-12, atol=1e-12)
+
+
+def test_partial_fit_on_blocks_of_rows_equals_partial_fit_on_their_stack():
+    """Training triples of several frames may be given as blocks: the same iterates as their concatenation."""
+    rng = np.random.default_rng(2)
+    blocks = [rng.normal(size=(n, 6)).astype(np.float32) for n in (7, 12, 5)]
+    y = np.where(rng.random(24) > 0.5, 1, -1)
+    stacked = PegasosSVM(lam=1e-2, batch_size=8, n_iter=25, rng=3).partial_fit(np.concatenate(blocks), y)
+    in_blocks = PegasosSVM(lam=1e-2, batch_size=8, n_iter=25, rng=3).partial_fit(blocks, y)
+    assert np.array_equal(in_blocks.coef_, stacked.coef_)
+    assert np.array_equal(in_blocks.avg_coef_, stacked.avg_coef_)

@@ -21,6 +21,8 @@ so the projection never excludes it.
 
 from __future__ import annotations
 
+from typing import Sequence
+
 import numba
 import numpy as np
 
@@ -149,26 +151,39 @@ class PegasosSVM:
         self.max_t = max_t
         self.rng = rng
 
-    def _augment(self, X: np.ndarray) -> np.ndarray:
-        X = np.asarray(X, dtype=float)
-        return np.hstack([X, np.full((len(X), 1), self.bias_scale)])
+    def _augment(self, blocks: list[np.ndarray]) -> np.ndarray:
+        """The rows of ``blocks`` stacked in order, each followed by the constant ``bias_scale``: one copy."""
+        rows, columns = sum(len(b) for b in blocks), blocks[0].shape[1]
+        out = np.empty((rows, columns + 1))
+        out[:, columns] = self.bias_scale
+        start = 0
+        for block in blocks:
+            out[start:start + len(block), :columns] = block
+            start += len(block)
+        return out
 
-    def partial_fit(self, X: np.ndarray, y: np.ndarray, *, n_iter: int | None = None) -> "PegasosSVM":
+    def partial_fit(self, X: np.ndarray | Sequence[np.ndarray], y: np.ndarray, *, n_iter: int | None = None
+                    ) -> "PegasosSVM":
         """Run ``n_iter`` Pegasos iterations on ``(X, y)``, continuing from the current ``w``.
 
-        ``y`` in ``{-1, +1}`` (or ``{0, 1}``, mapped to ``{-1, +1}``).
+        ``X``: ``(m, d)`` samples, or a sequence of ``(m_i, d)`` blocks of
+        them (stacked in order, without a concatenated copy); ``y`` in
+        ``{-1, +1}`` (or ``{0, 1}``, mapped to ``{-1, +1}``).
         """
-        X = np.asarray(X, dtype=float)
+        if isinstance(X, (list, tuple)) and X and all(isinstance(b, np.ndarray) and b.ndim == 2 for b in X):
+            blocks = list(X)
+        else:
+            blocks = [np.asarray(X, dtype=float)]
         y = np.where(np.asarray(y) > 0, 1.0, -1.0)
         if not hasattr(self, "coef_"):
-            self.coef_ = np.zeros(X.shape[1] + 1)
+            self.coef_ = np.zeros(blocks[0].shape[1] + 1)
             self.t_ = 0
             self.rng_ = np.random.default_rng(self.rng)
         if len(y) == 0:
             return self
         weights = balanced_weights(y) if self.balanced else None
         k = len(y) if self.batch_size is None else min(self.batch_size, len(y))
-        Xa = self._augment(X)
+        Xa = self._augment(blocks)
         n_iter = self.n_iter if n_iter is None else n_iter
         if n_iter <= 0:
             return self
@@ -204,7 +219,7 @@ class PegasosSVM:
     def objective(self, X: np.ndarray, y: np.ndarray) -> float:
         """The (class-weighted) SVM objective of the current ``w`` on ``(X, y)``."""
         y = np.where(np.asarray(y) > 0, 1.0, -1.0)
-        return svm_objective(self.coef_, self._augment(X), y, self.lam,
+        return svm_objective(self.coef_, self._augment([np.asarray(X, dtype=float)]), y, self.lam,
                              balanced_weights(y) if self.balanced else None)
 
 

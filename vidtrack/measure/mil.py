@@ -468,10 +468,9 @@ class MILAppearance:
         sets = list(self.training_)
         if s.keep_initial:  # the anchor: the first frame's triples, repeated anchor_weight times
             sets.extend([self.initial_] * max(1, int(s.anchor_weight)))
-        X = np.concatenate([item[0] for item in sets])
         y = np.concatenate([item[1] for item in sets])
         if np.any(y > 0) and np.any(y < 0):
-            self.svm_.partial_fit(X, y, n_iter=n_iter)
+            self.svm_.partial_fit([item[0] for item in sets], y, n_iter=n_iter)   # stacked once, inside
         tic(self.timings_, "svm training", t0)
 
 
