@@ -173,7 +173,7 @@ class PegasosSVM:
         if isinstance(X, (list, tuple)) and X and all(isinstance(b, np.ndarray) and b.ndim == 2 for b in X):
             blocks = list(X)
         else:
-            blocks = [np.asarray(X, dtype=float)]
+            blocks = [np.asarray(X)]   # one copy, to float, in _augment
         y = np.where(np.asarray(y) > 0, 1.0, -1.0)
         if not hasattr(self, "coef_"):
             self.coef_ = np.zeros(blocks[0].shape[1] + 1)
@@ -219,7 +219,7 @@ class PegasosSVM:
     def objective(self, X: np.ndarray, y: np.ndarray) -> float:
         """The (class-weighted) SVM objective of the current ``w`` on ``(X, y)``."""
         y = np.where(np.asarray(y) > 0, 1.0, -1.0)
-        return svm_objective(self.coef_, self._augment([np.asarray(X, dtype=float)]), y, self.lam,
+        return svm_objective(self.coef_, self._augment([np.asarray(X)]), y, self.lam,
                              balanced_weights(y) if self.balanced else None)
 
 

@@ -44,7 +44,7 @@ Speed, without changing a result: the filter's update from the last frame
 and its detection in this one run on a second thread
 (:class:`~vidtrack.measure.threads.SecondThread`) while this one computes
 the superpixels, the SVM scores, the graph cut and the inlier box; only the
-fusion waits for the filter.  When the second thread is still learning as a
+fusion (and the re-detection it may start) waits for the filter.  When the second thread is still learning as a
 frame arrives, this one also cuts the filter's search window (which does
 not depend on what the filter learns).  The per-pixel loops (SLIC,
 the descriptors, the inliers' peak, HOG, the colour model, Pegasos) are
