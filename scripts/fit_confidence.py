@@ -68,13 +68,13 @@ OUT = Path(__file__).resolve().parents[1] / "vidtrack" / "filters" / "calibratio
 #: 0.694, all of :data:`~vidtrack.filters.score_trackers.CUES` 0.904); pf: the running colour likelihood,
 #: the particles' spread and the size gap (0.933; without the size gap 0.923, the uncalibrated confidence
 #: 0.734, all 0.784); bayes: the running verification and colour likelihood
-#: (0.935; 0.753, all 0.913); cbt: the running verification, the mode mass and the verification gap (0.859; the
-#: uncalibrated confidence 0.654, all of :data:`~vidtrack.filters.cbt.CUES` 0.805).
+#: (0.935; 0.753, all 0.913); cbt: the running colour likelihood, the running verification and the mode mass
+#: (0.894; the uncalibrated confidence 0.667, all of :data:`~vidtrack.filters.cbt.CUES` 0.810).
 MIL_CUES = tuple(c for c in mil_filter.CUES if c[0] in ("quality", "psr", "inlier_coverage"))
 NH_CUES = tuple(c for c in score_trackers.CUES if c[0] in ("verify_mean", "colour", "verify_size_gap"))
 PF_CUES = tuple(c for c in score_trackers.CUES if c[0] in ("colour_mean", "spread", "verify_size_gap"))
 BAYES_CUES = tuple(c for c in score_trackers.CUES if c[0] in ("verify_mean", "colour_mean"))
-CBT_CUES = tuple(c for c in cbt_filter.CUES if c[0] in ("verify_mean", "mode_mass", "verify_gap"))
+CBT_CUES = tuple(c for c in cbt_filter.CUES if c[0] in ("colour_mean", "verify_mean", "mode_mass"))
 
 #: tracker -> (its cues, the setting that switches its calibration off, the rule of its lost threshold)
 TRACKERS = {

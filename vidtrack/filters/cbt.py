@@ -169,8 +169,8 @@ class CBTFilter:
     window_boxes: float = 10.0
     min_window: float = 64.0
     d_channels: int = 15
-    d_range: float = 0.6
-    prior_sigma: float = 0.12
+    d_range: float = 1.0
+    prior_sigma: float = 0.2
     prior_weight: float = 20.0
     relearn_every: int = 10
     clutter: float = 0.02
