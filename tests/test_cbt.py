@@ -373,3 +373,20 @@ def test_cbt_over_its_memory_budget_is_refused_before_tracking(moving_target):
     with pytest.raises(UsageError, match=r"needs \d+ MB, over the 512 MB budget"):
         f.initialize(boxes[0], frames[0])
     assert grid_megabytes(53, 2) < 5.0   # the default grid of any box: 53 channels, order 2
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_cbt_follows_a_target_moving_a_third_of_its_size_a_frame(seed):
+    """8 px a frame on a 24x28 box: within the default motion model's range (one box size a frame, a random walk
+    of 0.2 box sizes to start from); a model reaching 0.6 box sizes with a 0.12 walk loses the target."""
+    frames, boxes = synthetic_sequence(n=30, size=(480, 120), box=(20, 40, 24, 28), velocity=(8, 0.5), seed=seed)
+
+    def final_error(settings):
+        tracker = build_tracker("cbt", seed=0, settings=settings)
+        tracker.initialize(frames[0], boxes[0])
+        for frame in frames[1:]:
+            state = tracker.step(frame)
+        return np.linalg.norm(state.box.center - boxes[-1].center)
+
+    assert final_error({}) < 4.0
+    assert final_error({"d_range": 0.6, "prior_sigma": 0.12}) > 24.0
