@@ -155,8 +155,8 @@ def test_mil_reacquires_a_target_that_emerges_from_behind_an_occluder(seed):
 
 
 def test_without_occlusion_reasoning_mil_stays_behind_the_occluder():
-    """The same scenes with the occlusion reasoning switched off: at some of the speeds the reasoning recovers,
-    the measurements of the half-hidden square pull the box back onto the post, and it is not found again
+    """The scenes the reasoning recovers at every speed, with it switched off: at one speed at least the
+    measurements of the half-hidden square pull the box back onto the post, and it is not found again
     (what the reasoning is for)."""
     behind = []
     for speed in (1.8, 2.0, 2.2):

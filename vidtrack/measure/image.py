@@ -21,8 +21,8 @@ def cut_window(image: np.ndarray, centre, size, out_size: tuple[int, int]) -> np
     """The ``size = (w, h)`` window of ``image`` centred on ``centre``, resampled to ``out_size = (w', h')``.
 
     Parts outside the image repeat its border (``cv2.BORDER_REPLICATE``);
-    shrinking is :func:`shrink`, enlarging bilinear interpolation.  Works
-    on ``(H, W)`` and ``(H, W, C)`` arrays.
+    the window is resampled by :func:`resample`.  Works on ``(H, W)`` and
+    ``(H, W, C)`` arrays.
     """
     w = max(int(round(size[0])), 1)
     h = max(int(round(size[1])), 1)
@@ -38,24 +38,22 @@ def cut_window(image: np.ndarray, centre, size, out_size: tuple[int, int]) -> np
         patch = cv2.copyMakeBorder(patch, max(top, 0), max(bottom, 0), max(left, 0), max(right, 0),
                                    cv2.BORDER_REPLICATE)
         patch = patch[max(-top, 0):patch.shape[0] - max(-bottom, 0), max(-left, 0):patch.shape[1] - max(-right, 0)]
-    ow, oh = int(out_size[0]), int(out_size[1])
-    if patch.shape[1] == ow and patch.shape[0] == oh:
-        return np.ascontiguousarray(patch)
-    return shrink(patch, (ow, oh))
+    return resample(patch, out_size)
 
 
-def shrink(image: np.ndarray, out_size: tuple[int, int]) -> np.ndarray:
-    """``image`` resampled to ``out_size = (w', h')``: an approximation of area averaging at a fraction of its cost.
+def resample(image: np.ndarray, out_size: tuple[int, int]) -> np.ndarray:
+    """``image`` resampled to ``out_size = (w', h')``; shrinking approximates area averaging at a fraction of its cost.
 
     OpenCV's area averaging (``cv2.INTER_AREA``) is fast for a whole
     ratio and several times slower for a fractional one.  Here the whole
     part ``k = floor(min ratio)`` (when at least 2) is area-averaged on
     the integer path, after cropping the ``< k`` rows and columns it does
     not divide evenly from both sides (under half an output pixel); the
-    remaining factor ``f < 2`` is a Gaussian pre-filter of the standard
-    deviation of a box ``f`` pixels wide (``f / sqrt(12)``, the area
-    average's own) followed by bilinear interpolation.  Enlarging is
-    bilinear interpolation alone.
+    remaining factor ``f`` per axis (below 2 on the axis of the smaller
+    ratio) is a Gaussian pre-filter of the standard deviation of a box
+    ``f`` pixels wide (``f / sqrt(12)``, the area average's own) followed
+    by bilinear interpolation.  An axis that is enlarged is not filtered:
+    bilinear interpolation alone.  Same size: the image itself (contiguous).
     """
     ow, oh = int(out_size[0]), int(out_size[1])
     fx, fy = image.shape[1] / ow, image.shape[0] / oh
