@@ -1,7 +1,6 @@
 """The vidtrack command end to end: every filter on the bundled sample, and bad input."""
 
 import csv
-import os
 import subprocess
 import sys
 
@@ -77,6 +76,7 @@ BAD_INPUTS = {
     "missing video": (["nope.mp4", "--init-box", "1,1,5,5"], "no such"),
     "folder without images": (["{empty}", "--init-box", "1,1,5,5"], "no images"),
     "broken video": (["{broken}", "--init-box", "1,1,5,5"], "cannot decode"),
+    "container without video": (["{lyrics}", "--init-box", "1,1,5,5"], "no video stream"),
     "malformed box": (["{video}", "--init-box", "1,2,three,4"], "four numbers"),
     "three numbers": (["{video}", "--init-box", "1,2,3"], "four numbers"),
     "zero size": (["{video}", "--init-box", "10,10,0,5"], "positive"),
@@ -95,8 +95,11 @@ def test_bad_input_is_one_line_and_exit_2(case, tmp_path):
     empty = tmp_path / "empty"
     empty.mkdir()
     broken = tmp_path / "broken.mp4"
-    broken.write_bytes(os.urandom(2000))
-    args = [a.format(empty=empty, broken=broken, video=SAMPLE_VIDEO) for a in args]
+    # Fixed bytes: some random draws happen to parse as a container FFmpeg knows.
+    broken.write_bytes(np.random.default_rng(0).bytes(2000))
+    lyrics = tmp_path / "lyrics.mp4"
+    lyrics.write_text("[00:01.00]first line\n[00:02.50]second line\n")
+    args = [a.format(empty=empty, broken=broken, lyrics=lyrics, video=SAMPLE_VIDEO) for a in args]
     result = vidtrack(*args, "--quiet", cwd=tmp_path)
     assert result.returncode == 2
     lines = result.stderr.strip().splitlines()
