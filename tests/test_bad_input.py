@@ -33,6 +33,7 @@ CASES: dict[str, tuple[list[str], str]] = {
     "text file named .mp4": (["{text_mp4}", "--init-box", "56,20,31,45"], "cannot decode video"),
     "video without frames": (["{no_frames}", "--init-box", "1,1,5,5"], "no decodable frame"),
     "audio only": (["{audio}", "--init-box", "1,1,5,5"], "no video stream"),
+    "lyrics file named .mp4": (["{lyrics}", "--init-box", "1,1,5,5"], "no video stream"),
     "mixed image sizes": (["{mixed}", "--init-box", "1,1,5,5"], "0002.png is 80x60"),
     "image folder with a broken first image": (["{broken_first}", "--init-box", "1,1,5,5"], "cannot decode image"),
     # -- the box
@@ -222,6 +223,8 @@ def corpus_files(tmp: Path) -> dict[str, str]:
     files["short_text"] = str(tmp / "short.txt")
     (tmp / "notes.mp4").write_text("These are my notes about the video.\n" * 40)
     files["text_mp4"] = str(tmp / "notes.mp4")
+    (tmp / "lyrics.mp4").write_text("[00:01.00]first line\n[00:02.50]second line\n")  # FFmpeg's lrc demuxer
+    files["lyrics"] = str(tmp / "lyrics.mp4")
     files["no_frames"] = str(_no_frames_avi(tmp / "no_frames.avi"))
     with wave.open(str(tmp / "audio.wav"), "wb") as audio:
         audio.setnchannels(1), audio.setsampwidth(2), audio.setframerate(8000)
