@@ -62,18 +62,18 @@ OUT = Path(__file__).resolve().parents[1] / "vidtrack" / "filters" / "calibratio
 
 #: The cues the packaged files use, chosen on tune by leave-one-sequence-out.  mil (fit on 12 sequences,
 #: score the 13th, ROC AUC of the pooled held-out probabilities): quality, PSR and inlier coverage
-#: (0.917; all of :data:`~vidtrack.filters.mil.CUES` 0.898, the quality alone 0.870).  The score-map
-#: trackers and cbt: forward selection on :func:`held_out_auc`.  nh: the running first-frame verification,
-#: the colour likelihood and the size gap (0.910; without the size gap 0.905, the uncalibrated confidence
-#: 0.694, all of :data:`~vidtrack.filters.score_trackers.CUES` 0.904); pf: the running colour likelihood,
-#: the particles' spread and the size gap (0.933; without the size gap 0.923, the uncalibrated confidence
-#: 0.734, all 0.784); bayes: the running verification and colour likelihood
-#: (0.935; 0.753, all 0.913); cbt: the running colour likelihood, the running verification and the mode mass
-#: (0.894; the uncalibrated confidence 0.667, all of :data:`~vidtrack.filters.cbt.CUES` 0.810).
+#: (0.912; all of :data:`~vidtrack.filters.mil.CUES` 0.896, the quality alone 0.837).  The score-map
+#: trackers and cbt: forward selection on :func:`held_out_auc`.  nh: the running colour likelihood and the
+#: verification gap (0.924; with the size gap as well 0.916, the uncalibrated confidence 0.767, all of
+#: :data:`~vidtrack.filters.score_trackers.CUES` 0.870); pf: the running colour likelihood, the verification
+#: gap and the particles' spread (0.954; 0.722, all 0.906); bayes: the running verification and colour
+#: likelihood and the spread (0.937; 0.813, all 0.882); cbt: the running colour likelihood, the running
+#: verification and the mode mass (0.927; the uncalibrated confidence 0.642, all of
+#: :data:`~vidtrack.filters.cbt.CUES` 0.887).
 MIL_CUES = tuple(c for c in mil_filter.CUES if c[0] in ("quality", "psr", "inlier_coverage"))
-NH_CUES = tuple(c for c in score_trackers.CUES if c[0] in ("verify_mean", "colour", "verify_size_gap"))
-PF_CUES = tuple(c for c in score_trackers.CUES if c[0] in ("colour_mean", "spread", "verify_size_gap"))
-BAYES_CUES = tuple(c for c in score_trackers.CUES if c[0] in ("verify_mean", "colour_mean"))
+NH_CUES = tuple(c for c in score_trackers.CUES if c[0] in ("colour_mean", "verify_gap"))
+PF_CUES = tuple(c for c in score_trackers.CUES if c[0] in ("colour_mean", "verify_gap", "spread"))
+BAYES_CUES = tuple(c for c in score_trackers.CUES if c[0] in ("verify_mean", "colour_mean", "spread"))
 CBT_CUES = tuple(c for c in cbt_filter.CUES if c[0] in ("colour_mean", "verify_mean", "mode_mass"))
 
 #: tracker -> (its cues, the setting that switches its calibration off, the rule of its lost threshold)
