@@ -185,7 +185,7 @@ _KILLED_WRITER = textwrap.dedent("""
                    for i in (1, 2)}
         for sink in sinks:
             sink.write(Frame(k, image), targets)
-        time.sleep(0.002)                           # a tracker's time per frame
+        time.sleep(0.02)                            # a tracker's time per frame: a rewrite costs far less
 """)
 
 

@@ -21,9 +21,11 @@ keep every frame written: each frame's lines reach the operating system in
 one write.  An XML document is only valid once closed, so the CVAT file is
 rewritten whole every ``batch`` frames and at :meth:`CvatExport.close`:
 written to a temporary file beside it, then renamed over it, so it is
-always a complete document missing at most the last ``batch`` frames.
-Rewriting costs time in proportion to the frames so far, so the interval
-grows on long runs to keep that cost under a tenth of the run.
+always a complete document missing only the last frames.  Rewriting costs
+time in proportion to the frames so far, so a rewrite waits, beyond
+``batch`` frames, until the time since the last one is ten times what that
+one took: the document misses at most ``batch`` frames while rewriting is
+cheap next to tracking, more on long runs of a fast tracker.
 """
 
 from __future__ import annotations
