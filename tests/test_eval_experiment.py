@@ -11,7 +11,7 @@ import pytest
 
 from vidtrack.cli import main as vidtrack_main
 from vidtrack.eval.datasets import load_dataset, read_boxes
-from vidtrack.eval.evaluation import run_evaluation
+from vidtrack.eval.evaluation import make_jobs, run_evaluation
 from vidtrack.eval.synthetic import write_sequence
 from vidtrack.recipes import Recipe, registry
 from vidtrack.types import TrackState
@@ -60,6 +60,15 @@ def dataset(tmp_path):
 
 def _lines(path: Path) -> list[str]:
     return path.read_text().splitlines()
+
+
+def test_each_sequences_trackers_run_back_to_back(dataset):
+    """Jobs go sequence by sequence, every filter on one sequence before the next, so the trackers compared in
+    one run meet the same machine load."""
+    sequences = load_dataset(dataset[0])
+    jobs = make_jobs(sequences, ["a", "b", "c"])
+    assert [(job.sequence.name, job.filter_name) for job in jobs] == [
+        (sequence.name, name) for sequence in sequences for name in ("a", "b", "c")]
 
 
 def test_result_files_use_each_sequence_convention(dataset, tmp_path, fake_trackers):

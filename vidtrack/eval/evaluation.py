@@ -43,11 +43,15 @@ class Evaluation:
 def make_jobs(sequences: list[BenchmarkSequence], filters: list[str], *, seed: int = 0,
               max_frames: int | None = None, settings: Mapping[str, Any] | None = None,
               rerun_dir: str | Path | None = None, progress: Callable[..., Any] | None = None) -> list[Job]:
-    """One job per filter and sequence, filters first; options as for :func:`run_evaluation`."""
+    """One job per sequence and filter; options as for :func:`run_evaluation`.
+
+    Each sequence's filters run back to back, so the trackers compared in one
+    run (their fps above all) meet the same load of a shared machine.
+    """
     jobs = []
     pairs = tuple((settings or {}).items())
-    for name in filters:
-        for sequence in sequences:
+    for sequence in sequences:
+        for name in filters:
             rerun_path = None if rerun_dir is None else str(Path(rerun_dir).resolve() / name / f"{sequence.name}.rrd")
             jobs.append(Job(name, sequence, seed=seed, max_frames=max_frames, rerun_path=rerun_path, settings=pairs,
                             progress=progress))
