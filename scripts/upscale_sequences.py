@@ -33,6 +33,32 @@ from vidtrack.types import Box  # noqa: E402
 OTB_ORIGIN = 1
 
 
+def copy_parser(description: str) -> argparse.ArgumentParser:
+    """The arguments every sequence-copying script takes: the dataset, the output folder, ``--sequences``."""
+    parser = argparse.ArgumentParser(description=description)
+    parser.add_argument("dataset", help="folder of sequence folders")
+    parser.add_argument("out", help="output folder (outside the repository)")
+    parser.add_argument("--sequences", help="comma-separated names (default: all)")
+    return parser
+
+
+def outside_repository(folder: str) -> Path:
+    """``folder`` as a path, or exit when it lies inside the repository (benchmark data never enters it)."""
+    out = Path(folder)
+    if out.resolve().is_relative_to(Path(__file__).resolve().parents[1]):
+        raise SystemExit("write the copy outside the repository")
+    return out
+
+
+def copy_attributes(dataset: str | Path, out: Path, sequences) -> None:
+    """Copy the lines of ``dataset/attr_list.txt`` (if any) that name one of ``sequences`` to ``out``."""
+    attrs = Path(dataset) / "attr_list.txt"
+    if attrs.is_file():
+        keep = {s.name for s in sequences}
+        lines = [line for line in attrs.read_text().splitlines() if line.split("\t")[0].strip() in keep]
+        (out / "attr_list.txt").write_text("\n".join(lines) + "\n")
+
+
 def scaled_ground_truth(sequence, factor: float) -> list[str]:
     """The sequence's ground-truth rows with every annotated box scaled about the image origin."""
     rows = []
@@ -65,26 +91,16 @@ def upscale_sequence(sequence, out: Path, factor: float) -> int:
 
 
 def main(argv=None) -> int:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("dataset", help="folder of sequence folders")
-    parser.add_argument("out", help="output folder (outside the repository)")
-    parser.add_argument("--sequences", help="comma-separated names (default: all)")
+    parser = copy_parser(__doc__.splitlines()[0])
     parser.add_argument("--factor", type=float, default=2.0, help="scale factor (default 2)")
     args = parser.parse_args(argv)
     names = args.sequences.split(",") if args.sequences else None
-    out = Path(args.out)
-    repo = Path(__file__).resolve().parents[1]
-    if out.resolve().is_relative_to(repo):
-        raise SystemExit("write the copy outside the repository")
+    out = outside_repository(args.out)
     sequences = load_dataset(args.dataset, names)
     for sequence in sequences:
         n = upscale_sequence(sequence, out, args.factor)
         print(f"{sequence.name}: {n} frames x{args.factor:g}")
-    attrs = Path(args.dataset) / "attr_list.txt"
-    if attrs.is_file():
-        keep = {s.name for s in sequences}
-        lines = [line for line in attrs.read_text().splitlines() if line.split("\t")[0].strip() in keep]
-        (out / "attr_list.txt").write_text("\n".join(lines) + "\n")
+    copy_attributes(args.dataset, out, sequences)
     return 0
 
 

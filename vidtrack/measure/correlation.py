@@ -78,6 +78,9 @@ class CorrelationConfig:
                                                       "(SAMF's search; 1: scale is left to the scale filter)")
     scale_penalty: float = option(0.985, "multiplier on the peak of every searched scale other than 1")
     scale_filter: bool = option(True, "estimate the scale change with DSST's 1-D scale filter at the detected centre")
+    scale_count: int = option(17, "scales of the scale filter's sample (DSST: 33)")
+    scale_step: float = option(1.02, "ratio between neighbouring scales of the scale filter's sample")
+    scale_rate: float = option(0.025, "learning rate of the scale filter")
     psr_low: float = option(3.0, "peak-to-sidelobe ratio mapped to quality 0")
     psr_high: float = option(10.0, "peak-to-sidelobe ratio mapped to quality 1")
     colour: bool = option(True, "Lab colour cells beside HOG")
@@ -194,7 +197,8 @@ class CorrelationFilter:
         self.target_fft_ = fft.rfft2(gaussian_response(self.shape_, c.sigma_factor * box_cells).astype(np.float32))
         self.numerator_ = self.denominator_ = self.model_fft_ = self.admm_state_ = None
         self.last_sample_ = None
-        self.scale_ = ScaleFilter(colour=c.colour) if c.scale_filter else None
+        self.scale_ = (ScaleFilter(n_scales=c.scale_count, step=c.scale_step, learning_rate=c.scale_rate, colour=c.colour)
+                       if c.scale_filter else None)
         self.colour_model_ = (ColourHistogramModel(bins=c.colour_bins, learning_rate=c.colour_rate)
                               if c.colour_merge > 0 else None)
         if self.scale_ is not None:

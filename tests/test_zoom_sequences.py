@@ -1,0 +1,70 @@
+"""scripts/zoom_sequences.py: frames and ground truth under the same known zoom."""
+
+from __future__ import annotations
+
+import importlib.util
+from pathlib import Path
+
+import cv2
+import numpy as np
+import pytest
+
+from vidtrack.eval.synthetic import write_sequence
+
+SCRIPT = Path(__file__).resolve().parents[1] / "scripts" / "zoom_sequences.py"
+
+
+@pytest.fixture(scope="module")
+def zoom():
+    spec = importlib.util.spec_from_file_location("zoom_sequences", SCRIPT)
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+def red_extent(image: np.ndarray) -> np.ndarray:
+    """0-based ``(x, y, w, h)`` of the synthetic target's pixels (red or yellow: high red channel, low blue)."""
+    ys, xs = np.nonzero((image[:, :, 2] > 180) & (image[:, :, 0] < 80))
+    return np.array([xs.min(), ys.min(), xs.max() - xs.min() + 1, ys.max() - ys.min() + 1], float)
+
+
+def read_rows(path: Path) -> np.ndarray:
+    return np.array([[float(v) for v in line.split(",")] for line in path.read_text().split()])
+
+
+def test_zoom_factor_starts_at_one_and_reaches_one_minus_depth_half_a_period_later(zoom):
+    assert zoom.zoom_factor(0, 0.4, 100) == pytest.approx(1.0)
+    assert zoom.zoom_factor(50, 0.4, 100) == pytest.approx(0.6)
+    assert zoom.zoom_factor(100, 0.4, 100) == pytest.approx(1.0)
+
+
+def test_the_written_box_follows_the_zoomed_target(zoom, tmp_path):
+    source = tmp_path / "src"
+    write_sequence(source / "Still", frames=21, size=(160, 120), box=(90, 60, 40, 30), velocity=(0.0, 0.0))
+    assert zoom.main([str(source), str(tmp_path / "out"), "--depth", "0.5", "--period", "40"]) == 0
+    out = tmp_path / "out" / "Still"
+    truth = read_rows(out / "groundtruth_rect.txt")
+    images = sorted((out / "img").iterdir())
+    assert len(images) == len(truth) == 21
+    np.testing.assert_allclose(truth[0], [91, 61, 40, 30])             # z = 1: unchanged (1-based)
+    np.testing.assert_allclose(truth[20, 2:], [20, 15])                 # z = 0.5 half a period in
+    for row in (0, 10, 20):
+        seen = red_extent(cv2.imread(str(images[row])))
+        box = truth[row] - [1, 1, 0, 0]
+        assert np.all(np.abs(seen - box) <= 1.5), (row, seen, box)
+
+
+def test_rows_not_annotated_stay_zero(zoom, tmp_path):
+    source = tmp_path / "src"
+    write_sequence(source / "Sparse", frames=11, annotate_every=5)
+    assert zoom.main([str(source), str(tmp_path / "out"), "--depth", "0.3", "--period", "20"]) == 0
+    truth = read_rows(tmp_path / "out" / "Sparse" / "groundtruth_rect.txt")
+    assert np.all(truth[[1, 2, 3, 4, 6, 7, 8, 9]] == 0)
+    assert np.all(truth[[0, 5, 10], 2] > 0)
+
+
+def test_the_copy_is_refused_inside_the_repository(zoom, tmp_path):
+    write_sequence(tmp_path / "src" / "Still", frames=3)
+    with pytest.raises(SystemExit, match="outside the repository"):
+        zoom.main([str(tmp_path / "src"), str(SCRIPT.parents[1] / "zoom-copy")])
+    assert not (SCRIPT.parents[1] / "zoom-copy").exists()
