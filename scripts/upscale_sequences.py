@@ -27,7 +27,6 @@ import cv2
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from vidtrack.eval.datasets import annotated_rows, load_dataset  # noqa: E402
-from vidtrack.types import Box  # noqa: E402
 
 #: The copy is in the OTB layout, whose boxes are 1-based.
 OTB_ORIGIN = 1
@@ -59,35 +58,44 @@ def copy_attributes(dataset: str | Path, out: Path, sequences) -> None:
         (out / "attr_list.txt").write_text("\n".join(lines) + "\n")
 
 
-def scaled_ground_truth(sequence, factor: float) -> list[str]:
-    """The sequence's ground-truth rows with every annotated box scaled about the image origin."""
-    rows = []
-    annotated = annotated_rows(sequence.ground_truth)
-    for row, ok in enumerate(annotated):
-        if not ok:
-            rows.append("0,0,0,0")
-            continue
-        px = sequence.to_pixels(sequence.ground_truth_box(row))
-        big = Box(px.x * factor + OTB_ORIGIN, px.y * factor + OTB_ORIGIN, px.w * factor, px.h * factor)
-        rows.append(",".join(f"{v:.2f}" for v in big.as_array()))
-    return rows
+def copy_sequence(sequence, out: Path, image_map, box_map) -> int:
+    """Write ``sequence`` under ``out/<name>`` in the OTB layout, each frame and box mapped; returns the frame count.
 
-
-def upscale_sequence(sequence, out: Path, factor: float) -> int:
-    """Write ``sequence`` scaled by ``factor`` under ``out/<name>``; returns the number of frames."""
+    ``image_map(k, image)`` gives frame ``k``'s new image; ``box_map(k, box,
+    (width, height))`` the new 0-based pixel ``(x, y, w, h)`` of its annotated
+    box (the frame's original size given); rows that are not annotated stay
+    ``0,0,0,0``.
+    """
     folder = out / sequence.name / "img"
     folder.mkdir(parents=True, exist_ok=True)
+    size = None
     for k, path in enumerate(sequence.files):
         image = cv2.imread(str(path), cv2.IMREAD_UNCHANGED)
         if image is None:
             raise SystemExit(f"cannot read {path}")
-        big = cv2.resize(image, None, fx=factor, fy=factor, interpolation=cv2.INTER_LINEAR)
+        size = (image.shape[1], image.shape[0])
         suffix = Path(path).suffix.lower()
         name = folder / f"{k + 1:05d}{suffix if suffix in ('.png', '.jpg', '.jpeg') else '.png'}"
         params = [cv2.IMWRITE_JPEG_QUALITY, 95] if name.suffix in (".jpg", ".jpeg") else []
-        cv2.imwrite(str(name), big, params)
-    (out / sequence.name / "groundtruth_rect.txt").write_text("\n".join(scaled_ground_truth(sequence, factor)) + "\n")
+        cv2.imwrite(str(name), image_map(k, image), params)
+    rows = []
+    for row, ok in enumerate(annotated_rows(sequence.ground_truth)):
+        if not ok:
+            rows.append("0,0,0,0")
+            continue
+        px = sequence.to_pixels(sequence.ground_truth_box(row))
+        x, y, w, h = box_map(row, px.as_array(), size)
+        rows.append(f"{x + OTB_ORIGIN:.2f},{y + OTB_ORIGIN:.2f},{w:.2f},{h:.2f}")
+    (out / sequence.name / "groundtruth_rect.txt").write_text("\n".join(rows) + "\n")
     return len(sequence.files)
+
+
+def upscale_sequence(sequence, out: Path, factor: float) -> int:
+    """Write ``sequence`` scaled by ``factor`` (frames and boxes, about the image origin) under ``out/<name>``."""
+    return copy_sequence(
+        sequence, out,
+        lambda k, image: cv2.resize(image, None, fx=factor, fy=factor, interpolation=cv2.INTER_LINEAR),
+        lambda k, box, size: tuple(factor * float(v) for v in box))
 
 
 def main(argv=None) -> int:

@@ -33,13 +33,9 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
-from upscale_sequences import copy_attributes, copy_parser, outside_repository  # noqa: E402
+from upscale_sequences import copy_attributes, copy_parser, copy_sequence, outside_repository  # noqa: E402
 
-from vidtrack.eval.datasets import annotated_rows, load_dataset  # noqa: E402
-
-#: The copy is in the OTB layout, whose boxes are 1-based.
-OTB_ORIGIN = 1
-
+from vidtrack.eval.datasets import load_dataset  # noqa: E402
 
 def zoom_factor(t: int, depth: float, period: float) -> float:
     """``z(t) = 1 - depth (1 - cos(2 pi t / period)) / 2``."""
@@ -47,11 +43,11 @@ def zoom_factor(t: int, depth: float, period: float) -> float:
 
 
 def zoom_image(image: np.ndarray, z: float) -> np.ndarray:
-    """``image`` zoomed by ``z`` about its centre, same size, the border repeating the edge."""
+    """``image`` zoomed by ``z`` about its centre (bilinear), same size, the border repeating the edge."""
     h, w = image.shape[:2]
     cx, cy = (w - 1) / 2.0, (h - 1) / 2.0
     matrix = np.array([[z, 0.0, cx * (1.0 - z)], [0.0, z, cy * (1.0 - z)]], np.float64)
-    return cv2.warpAffine(image, matrix, (w, h), flags=cv2.INTER_AREA if z < 1 else cv2.INTER_LINEAR,
+    return cv2.warpAffine(image, matrix, (w, h), flags=cv2.INTER_LINEAR,
                           borderMode=cv2.BORDER_REPLICATE)
 
 
@@ -64,27 +60,8 @@ def zoom_box(box, z: float, width: int, height: int) -> tuple[float, float, floa
 
 def zoom_sequence(sequence, out: Path, depth: float, period: float) -> int:
     """Write ``sequence`` under the zoom under ``out/<name>``; returns the number of frames."""
-    folder = out / sequence.name / "img"
-    folder.mkdir(parents=True, exist_ok=True)
-    annotated = annotated_rows(sequence.ground_truth)
-    rows = []
-    for k, path in enumerate(sequence.files):
-        image = cv2.imread(str(path), cv2.IMREAD_UNCHANGED)
-        if image is None:
-            raise SystemExit(f"cannot read {path}")
-        z = zoom_factor(k, depth, period)
-        suffix = Path(path).suffix.lower()
-        name = folder / f"{k + 1:05d}{suffix if suffix in ('.png', '.jpg', '.jpeg') else '.png'}"
-        params = [cv2.IMWRITE_JPEG_QUALITY, 95] if name.suffix in (".jpg", ".jpeg") else []
-        cv2.imwrite(str(name), zoom_image(image, z), params)
-        if not annotated[k]:
-            rows.append("0,0,0,0")
-            continue
-        px = sequence.to_pixels(sequence.ground_truth_box(k))
-        x, y, w, h = zoom_box(px.as_array(), z, image.shape[1], image.shape[0])
-        rows.append(f"{x + OTB_ORIGIN:.2f},{y + OTB_ORIGIN:.2f},{w:.2f},{h:.2f}")
-    (out / sequence.name / "groundtruth_rect.txt").write_text("\n".join(rows) + "\n")
-    return len(sequence.files)
+    return copy_sequence(sequence, out, lambda k, image: zoom_image(image, zoom_factor(k, depth, period)),
+                         lambda k, box, size: zoom_box(box, zoom_factor(k, depth, period), *size))
 
 
 def main(argv=None) -> int:

@@ -45,6 +45,21 @@ def test_python_values_and_whole_groups():
     assert with_settings(Outer(), {"inner": Inner(rate=2.0)}).inner.rate == 2.0
 
 
+@dataclass(frozen=True)
+class Bounded:
+    count: int = option(3, "at least 1", minimum=1)
+    step: float = option(1.5, "more than 1", above=1.0)
+
+
+def test_bounded_numbers_take_values_inside_and_reject_the_rest_in_one_line():
+    config = with_settings(Bounded(), {"count": 1, "step": "1.0001"})
+    assert (config.count, config.step) == (1, 1.0001)
+    for settings, words in (({"count": 0}, ("count", "at least 1")), ({"step": "1"}, ("step", "more than 1"))):
+        with pytest.raises(UsageError) as info:
+            with_settings(Bounded(), settings)
+        assert "\n" not in str(info.value) and all(word in str(info.value) for word in words)
+
+
 def test_the_default_is_never_modified():
     default = Outer()
     with_settings(default, {"inner.rate": 9.0})

@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 from scipy import fft
 
+from vidtrack.config import with_settings
 from vidtrack.errors import UsageError
 from vidtrack.measure.correlation import CorrelationConfig, CorrelationFilter
 from vidtrack.measure.correlation_score_map import CorrelationDetectorConfig, CorrelationScoreMapMeasurer
@@ -103,6 +104,17 @@ def test_scale_filter_follows_a_1_5x_scale_change(kind):
         cf.update(frame, box)
     assert abs(box.w / (size[0] * 1.5) - 1.0) < 0.1
     assert abs(box.h / (size[1] * 1.5) - 1.0) < 0.1
+
+
+def test_the_scale_options_configure_the_scale_filter_and_reject_what_it_cannot_use():
+    img, _ = scene(np.random.default_rng(2), (160.0, 120.0), (32.0, 40.0))
+    cf = CorrelationFilter(CorrelationConfig(scale_count=9, scale_step=1.04, scale_rate=0.01))
+    cf.initialize(img, Box.from_center(160.0, 120.0, 32.0, 40.0))
+    assert (cf.scale_.n_scales, cf.scale_.step, cf.scale_.learning_rate) == (9, 1.04, 0.01)
+    np.testing.assert_allclose(cf.scale_.factors_, 1.04 ** np.arange(-4, 5))
+    for key, value in (("scale_count", 2), ("scale_step", 1.0), ("scale_rate", 0.0), ("cell", 0)):
+        with pytest.raises(UsageError, match=key):
+            with_settings(CorrelationConfig(), {key: value})
 
 
 @pytest.mark.parametrize("kind", sorted(FILTERS))

@@ -32,14 +32,26 @@ _TRUE_WORDS = {"true", "yes", "on", "1"}
 _FALSE_WORDS = {"false", "no", "off", "0"}
 
 
-def option(default: Any, doc: str) -> Any:
+def option(default: Any, doc: str, *, minimum: float | None = None, above: float | None = None) -> Any:
     """A dataclass field with ``default`` and its one-line ``doc`` (shown by ``vidtrack filters NAME``).
 
     A group (a nested config dataclass) is given as its default instance.
+    ``minimum`` (the value may equal it) and ``above`` (it must exceed it)
+    bound a number: a setting outside is a one-line :class:`UsageError`.
     """
     if dataclasses.is_dataclass(default) and not isinstance(default, type):
         return dataclasses.field(default_factory=lambda: default, metadata={"doc": doc})
-    return dataclasses.field(default=default, metadata={"doc": doc})
+    return dataclasses.field(default=default, metadata={"doc": doc, "minimum": minimum, "above": above})
+
+
+def _check_bounds(value: Any, metadata: Mapping) -> None:
+    """Raise ValueError when the number ``value`` is under the field's ``minimum`` or not above its ``above``."""
+    if not isinstance(value, (int, float)) or isinstance(value, bool):
+        return
+    if metadata.get("minimum") is not None and value < metadata["minimum"]:
+        raise ValueError(f"expected at least {metadata['minimum']:g}")
+    if metadata.get("above") is not None and value <= metadata["above"]:
+        raise ValueError(f"expected more than {metadata['above']:g}")
 
 
 def _is_group(value: Any) -> bool:
@@ -179,6 +191,7 @@ def _set(config: Any, path: list[str], value: Any, full_key: str, valid: list[st
     tp = _hints(config)[head]
     try:
         converted = _convert(value, tp, full_key)
+        _check_bounds(converted, next(f for f in dataclasses.fields(config) if f.name == head).metadata)
     except ValueError as exc:
         raise UsageError(f"bad value {value!r} for option {full_key} ({_type_name(tp)}): {exc}") from None
     return dataclasses.replace(config, **{head: converted})

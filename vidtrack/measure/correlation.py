@@ -70,7 +70,7 @@ class CorrelationConfig:
 
     padding: float = option(4.0, "the window is the box grown by this factor: (1 + padding) box sides")
     window_cells: int = option(40, "the window's square-root area in cells (its resolution, whatever the frame)")
-    cell: int = option(4, "cell side in resampled pixels")
+    cell: int = option(4, "cell side in resampled pixels", minimum=1)
     sigma_factor: float = option(0.1, "width of the desired Gaussian response, fraction of the box's sqrt(w h)")
     lam: float = option(1e-2, "regulariser lambda of the filter (DSST eq. 4)")
     learning_rate: float = option(0.02, "eta, the rate of the running model (DSST eq. 5)")
@@ -78,9 +78,10 @@ class CorrelationConfig:
                                                       "(SAMF's search; 1: scale is left to the scale filter)")
     scale_penalty: float = option(0.985, "multiplier on the peak of every searched scale other than 1")
     scale_filter: bool = option(True, "estimate the scale change with DSST's 1-D scale filter at the detected centre")
-    scale_count: int = option(17, "scales of the scale filter's sample (DSST: 33)")
-    scale_step: float = option(1.02, "ratio between neighbouring scales of the scale filter's sample")
-    scale_rate: float = option(0.025, "learning rate of the scale filter")
+    scale_count: int = option(ScaleFilter.n_scales, "scales of the scale filter's sample (DSST: 33)", minimum=3)
+    scale_step: float = option(ScaleFilter.step, "ratio between neighbouring scales of the scale filter's sample",
+                               above=1.0)
+    scale_rate: float = option(ScaleFilter.learning_rate, "learning rate of the scale filter", above=0.0)
     psr_low: float = option(3.0, "peak-to-sidelobe ratio mapped to quality 0")
     psr_high: float = option(10.0, "peak-to-sidelobe ratio mapped to quality 1")
     colour: bool = option(True, "Lab colour cells beside HOG")
