@@ -8,6 +8,8 @@ import numpy as np
 import pytest
 from scipy import fft
 
+from conftest import SEQUENCES
+
 from vidtrack.config import with_settings
 from vidtrack.errors import UsageError
 from vidtrack.measure.correlation import CorrelationConfig, CorrelationFilter
@@ -17,6 +19,7 @@ from vidtrack.measure.dcf import (constrained_filter, correlation_response, dcf_
 from vidtrack.measure.detectors import make_detector
 from vidtrack.measure.features import cell_features, orientation_cells
 from vidtrack.measure.mil_fusion import fuse_peak
+from vidtrack.measure.scale_filter import ScaleFilter
 from vidtrack.types import Box, Estimate, Frame
 
 
@@ -108,13 +111,49 @@ def test_scale_filter_follows_a_1_5x_scale_change(kind):
 
 def test_the_scale_options_configure_the_scale_filter_and_reject_what_it_cannot_use():
     img, _ = scene(np.random.default_rng(2), (160.0, 120.0), (32.0, 40.0))
-    cf = CorrelationFilter(CorrelationConfig(scale_count=9, scale_step=1.04, scale_rate=0.01))
+    cf = CorrelationFilter(CorrelationConfig(scale_count=9, scale_step=1.04, scale_rate=0.01, scale_area=1280.0))
     cf.initialize(img, Box.from_center(160.0, 120.0, 32.0, 40.0))
     assert (cf.scale_.n_scales, cf.scale_.step, cf.scale_.learning_rate) == (9, 1.04, 0.01)
     np.testing.assert_allclose(cf.scale_.factors_, 1.04 ** np.arange(-4, 5))
-    for key, value in (("scale_count", 2), ("scale_step", 1.0), ("scale_rate", 0.0), ("cell", 0)):
+    assert cf.scale_.model_size_ == (32, 40)   # 1280 pixels: the 32x40 box at its own resolution
+    for key, value in (("scale_count", 2), ("scale_step", 1.0), ("scale_rate", 0.0), ("scale_area", 0.0),
+                       ("cell", 0)):
         with pytest.raises(UsageError, match=key):
             with_settings(CorrelationConfig(), {key: value})
+
+
+def zoomed_about(image: np.ndarray, centre, zoom: float) -> np.ndarray:
+    """``image`` magnified by ``zoom`` about ``centre`` (a camera zooming in, or out for ``zoom < 1``)."""
+    cx, cy = centre
+    M = np.array([[zoom, 0.0, cx * (1.0 - zoom)], [0.0, zoom, cy * (1.0 - zoom)]])
+    return cv2.warpAffine(image, M, (image.shape[1], image.shape[0]), flags=cv2.INTER_LINEAR,
+                          borderMode=cv2.BORDER_REPLICATE)
+
+
+@pytest.mark.skipif(not (SEQUENCES / "Dancer2").is_dir(), reason="shared benchmark sequences not present")
+@pytest.mark.parametrize("rate", [1.01, 0.99])
+def test_the_scale_filter_at_mils_resolution_follows_a_slow_zoom_of_a_real_dancer(rate):
+    """A 40x148 dancer zoomed 1 % a frame for 30 frames: the scale filter alone, fed its own estimates.
+
+    Resampled to DSST's 512 pixels (4-pixel cells: 3x11 of them) the 17 samples 2 % apart are too alike to
+    tell apart and the estimate stays near the first size; at ``mil``'s 2048 pixels it follows the zoom.
+    """
+    image = cv2.imread(str(SEQUENCES / "Dancer2" / "img" / "0001.jpg"))
+    box = Box(149.0, 52.0, 40.0, 148.0)   # the first ground-truth box, in 0-based pixels
+    true = rate ** 30
+    found = {}
+    for area in (512.0, CorrelationConfig().scale_area):
+        scale = ScaleFilter(model_area=area)
+        scale.initialize(image, box)
+        size = np.array(box.size, float)
+        for k in range(1, 31):
+            frame = zoomed_about(image, box.center, rate ** k)
+            size = size * scale.estimate(frame, box.center, size)
+            scale.update(frame, Box.from_center(*box.center, *size))
+        found[area] = size[1] / box.h
+    assert CorrelationConfig().scale_area == 2048.0
+    assert abs(np.log(found[2048.0] / true)) < 0.05          # within 5 % of the 35 % zoom
+    assert abs(np.log(found[512.0])) < 0.25 * abs(np.log(true))   # under a quarter of it
 
 
 @pytest.mark.parametrize("kind", sorted(FILTERS))
@@ -317,7 +356,7 @@ def test_reusing_the_detection_window_matches_a_recut_window(constrained):
 
 def test_make_detector_configures_the_score_map_detector():
     """``make_detector("cf", ...)`` takes the detector's fields (strings converted, an unknown one refused); the
-    detector's filter is mil's but for learning from a re-cut window."""
+    detector's filter is mil's but for learning from a re-cut window and DSST's 512-pixel scale samples."""
     detector = make_detector("cf", scale_filter="false", learn_above=0.3, size_limits=(0.5, 2.0))
     assert isinstance(detector, CorrelationScoreMapMeasurer)
     assert detector.config.scale_filter is False and detector.config.learn_above == 0.3
@@ -326,7 +365,7 @@ def test_make_detector_configures_the_score_map_detector():
         make_detector("cf", scale_filters=False)
     mil, own = CorrelationConfig(), CorrelationDetectorConfig()
     differ = {f.name for f in fields(CorrelationConfig) if getattr(mil, f.name) != getattr(own, f.name)}
-    assert differ == {"reuse_sample"}
+    assert differ == {"reuse_sample", "scale_area"} and own.scale_area == 512.0
     rng = np.random.default_rng(5)
     box = Box.from_center(100, 100, 30, 36)
     img, patch = scene(rng, box.center, box.size)

@@ -82,6 +82,8 @@ class CorrelationConfig:
     scale_step: float = option(ScaleFilter.step, "ratio between neighbouring scales of the scale filter's sample",
                                above=1.0)
     scale_rate: float = option(ScaleFilter.learning_rate, "learning rate of the scale filter", above=0.0)
+    scale_area: float = option(2048.0, "pixels each scale of the scale filter's sample is resampled to (DSST: 512)",
+                               above=0.0)
     psr_low: float = option(3.0, "peak-to-sidelobe ratio mapped to quality 0")
     psr_high: float = option(10.0, "peak-to-sidelobe ratio mapped to quality 1")
     colour: bool = option(True, "Lab colour cells beside HOG")
@@ -198,7 +200,8 @@ class CorrelationFilter:
         self.target_fft_ = fft.rfft2(gaussian_response(self.shape_, c.sigma_factor * box_cells).astype(np.float32))
         self.numerator_ = self.denominator_ = self.model_fft_ = self.admm_state_ = None
         self.last_sample_ = None
-        self.scale_ = (ScaleFilter(n_scales=c.scale_count, step=c.scale_step, learning_rate=c.scale_rate, colour=c.colour)
+        self.scale_ = (ScaleFilter(n_scales=c.scale_count, step=c.scale_step, learning_rate=c.scale_rate,
+                                   model_area=c.scale_area, colour=c.colour)
                        if c.scale_filter else None)
         self.colour_model_ = (ColourHistogramModel(bins=c.colour_bins, learning_rate=c.colour_rate)
                               if c.colour_merge > 0 else None)

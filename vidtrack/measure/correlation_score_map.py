@@ -24,12 +24,15 @@ from .correlation import CorrelationConfig, CorrelationFilter, CorrelationResult
 class CorrelationDetectorConfig(CorrelationConfig):
     """The score-map detector: the :class:`~vidtrack.measure.correlation.CorrelationConfig` fields and its own.
 
-    It differs from ``mil``'s filter in one field: it learns from a re-cut
-    window (``reuse_sample`` off).
+    It differs from ``mil``'s filter in two fields: it learns from a re-cut
+    window (``reuse_sample`` off), and its scale filter resamples each scale
+    to DSST's 512 pixels (``scale_area``).
     """
 
     reuse_sample: bool = option(False, "learn from the detection's window shifted in the Fourier domain "
                                        "instead of a re-cut one")
+    scale_area: float = option(512.0, "pixels each scale of the scale filter's sample is resampled to",
+                               above=0.0)
     learn_above: float = option(0.2, "minimum quality of the frame's detection for the filter to learn")
     lost_margin: float = option(1.5, "while lost, the re-detection region reaches this many box sizes "
                                      "on each side of the prior")
