@@ -62,7 +62,8 @@ OUT = Path(__file__).resolve().parents[1] / "vidtrack" / "filters" / "calibratio
 
 #: The cues the packaged files use, chosen on tune by leave-one-sequence-out.  mil (fit on 12 sequences,
 #: score the 13th, ROC AUC of the pooled held-out probabilities): quality, PSR and inlier coverage
-#: (0.912; all of :data:`~vidtrack.filters.mil.CUES` 0.896, the quality alone 0.837).  The score-map
+#: (0.897 on the packaged tracker's frames; all of :data:`~vidtrack.filters.mil.CUES` 0.881, the quality
+#: alone 0.834; forward selection stops at the inlier coverage and the PSR, 0.899).  The score-map
 #: trackers and cbt: forward selection on :func:`held_out_auc`.  nh: the running colour likelihood and the
 #: verification gap (0.924; with the size gap as well 0.916, the uncalibrated confidence 0.767, all of
 #: :data:`~vidtrack.filters.score_trackers.CUES` 0.870); pf: the running colour likelihood, the verification

@@ -18,6 +18,7 @@ import numpy as np
 from ..config import option
 from ..types import Box, Estimate, Frame, ScoreMap
 from .correlation import CorrelationConfig, CorrelationFilter, CorrelationResult
+from .scale_filter import ScaleFilter
 
 
 @dataclass(frozen=True)
@@ -31,8 +32,8 @@ class CorrelationDetectorConfig(CorrelationConfig):
 
     reuse_sample: bool = option(False, "learn from the detection's window shifted in the Fourier domain "
                                        "instead of a re-cut one")
-    scale_area: float = option(512.0, "pixels each scale of the scale filter's sample is resampled to",
-                               above=0.0)
+    scale_area: float = option(ScaleFilter.model_area,
+                               "pixels each scale of the scale filter's sample is resampled to", above=0.0)
     learn_above: float = option(0.2, "minimum quality of the frame's detection for the filter to learn")
     lost_margin: float = option(1.5, "while lost, the re-detection region reaches this many box sizes "
                                      "on each side of the prior")
