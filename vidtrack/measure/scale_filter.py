@@ -14,6 +14,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+import cv2
 import numpy as np
 from scipy import fft
 
@@ -35,7 +36,9 @@ class ScaleFilter:
     weighted by a Hann window over the scales, are the ``(S, D)`` sample.  A
     1-D correlation filter along the scale axis (the same eqs. 4-6 with the
     Fourier transform over scales) is trained towards a Gaussian peaked at
-    ``k = 0``; the best ``k`` of a new sample is the scale change.
+    ``k = 0``; the best ``k`` of a new sample is the scale change.  The
+    sample is real, so the transforms over scales are real ones (``rfft``:
+    the half spectrum, the other half being its conjugate).
 
     Parameters
     ----------
@@ -67,18 +70,43 @@ class ScaleFilter:
         self.exponents_ = np.arange(self.n_scales) - self.n_scales // 2
         self.factors_ = self.step ** self.exponents_.astype(float)
         sigma = self.n_scales / np.sqrt(33.0) * self.sigma_factor
-        self.target_fft_ = fft.fft(np.exp(-0.5 * self.exponents_ ** 2 / sigma ** 2))
-        self.window_ = np.hanning(self.n_scales + 2)[1:-1]
+        self.target_fft_ = fft.rfft(np.exp(-0.5 * self.exponents_ ** 2 / sigma ** 2)).astype(np.complex64)
+        self.window_ = np.hanning(self.n_scales + 2)[1:-1].astype(np.float32)
         self.numerator_ = self.denominator_ = None
         self.last_sample_fft_ = None
         self.update(image, box, rate=1.0)
 
     def sample(self, image: np.ndarray, centre, size) -> np.ndarray:
-        """The ``(S, D)`` multi-scale sample around ``centre`` for a box of ``size``."""
-        # the S resampled patches stacked into one image: one feature pass instead of S
-        patches = [cut_window(image, centre, np.asarray(size, float) * f, self.model_size_) for f in self.factors_]
-        stacked = cell_features(np.concatenate(patches, axis=0), cell=self.cell, colour=self.colour)
-        return stacked.reshape(self.n_scales, -1) * self.window_[:, None]
+        """The ``(S, D)`` multi-scale sample around ``centre`` for a box of ``size``.
+
+        One window of whole image pixels, covering the largest scale, is cut
+        and resampled (:func:`~vidtrack.measure.image.cut_window`) to the
+        smallest scale's resolution; the ``S`` patches are then interpolated
+        from it (bilinear, ``cv2.remap``) at their exact sub-pixel extents, so
+        that scales 2 % apart differ even on a target a few pixels wide.  The
+        patches are stacked into one image for a single feature pass
+        (gradients and block normalisation see the neighbouring patch at the
+        seams).
+        """
+        model = np.array(self.model_size_, float)
+        centre = np.asarray(centre, float)
+        density = model / (np.asarray(size, float) * self.factors_[0])     # model pixels per image pixel
+        half = 0.5 * model * self.factors_[-1] / self.factors_[0] / density
+        low, high = np.floor(centre - half) - 1.0, np.ceil(centre + half) + 1.0
+        out = np.maximum(np.round((high - low) * density), 2.0).astype(int)
+        window = cut_window(image, 0.5 * (low + high), high - low, (int(out[0]), int(out[1])))
+        actual = out / (high - low)                                         # window pixels per image pixel
+        mw, mh = self.model_size_
+        offsets = [(np.arange(n) + 0.5 - n / 2.0) / density[axis] for axis, n in enumerate((mw, mh))]
+        relative = (self.factors_ / self.factors_[0])[:, None, None]
+        map_x = (centre[0] + offsets[0][None, None, :] * relative - low[0]) * actual[0] - 0.5
+        map_y = (centre[1] + offsets[1][None, :, None] * relative - low[1]) * actual[1] - 0.5
+        shape = (self.n_scales, mh, mw)
+        stacked = cv2.remap(window, np.broadcast_to(map_x, shape).reshape(-1, mw).astype(np.float32),
+                            np.broadcast_to(map_y, shape).reshape(-1, mw).astype(np.float32),
+                            cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
+        features = cell_features(stacked, cell=self.cell, colour=self.colour)
+        return features.reshape(self.n_scales, -1) * self.window_[:, None]
 
     def update(self, image: np.ndarray, box: Box, *, rate: float | None = None) -> None:
         """Learn from the multi-scale sample around ``box``: the one :meth:`estimate` took, when it has one.
@@ -91,16 +119,17 @@ class ScaleFilter:
         f = self.last_sample_fft_
         self.last_sample_fft_ = None
         if f is None:
-            f = fft.fft(self.sample(image, box.center, box.size), axis=0)
+            f = fft.rfft(self.sample(image, box.center, box.size), axis=0)
         num = np.conj(self.target_fft_)[:, None] * f              # conj(G) F_l
         den = np.sum(f.real ** 2 + f.imag ** 2, axis=1)            # sum_l |F_l|^2
         self.numerator_, self.denominator_ = running_average((self.numerator_, self.denominator_), (num, den), rate)
 
     def estimate(self, image: np.ndarray, centre, size) -> float:
         """The scale change of the target around ``centre``: the factor of the best-responding scale."""
-        z = fft.fft(self.sample(image, centre, size), axis=0)
+        z = fft.rfft(self.sample(image, centre, size), axis=0)
         self.last_sample_fft_ = z
-        response = np.real(fft.ifft(np.sum(np.conj(self.numerator_) * z, axis=1) / (self.denominator_ + self.lam)))
+        response = fft.irfft(np.sum(np.conj(self.numerator_) * z, axis=1) / (self.denominator_ + self.lam),
+                             n=self.n_scales)
         k = int(np.argmax(response))
         exponent = float(self.exponents_[k])
         if 0 < k < len(response) - 1:   # sub-step: the parabola through the peak and its neighbours
