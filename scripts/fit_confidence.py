@@ -62,15 +62,15 @@ OUT = Path(__file__).resolve().parents[1] / "vidtrack" / "filters" / "calibratio
 
 #: The cues the packaged files use, chosen on tune by leave-one-sequence-out.  mil (fit on 12 sequences,
 #: score the 13th, ROC AUC of the pooled held-out probabilities): quality, PSR and inlier coverage
-#: (0.897 on the packaged tracker's frames; all of :data:`~vidtrack.filters.mil.CUES` 0.881, the quality
-#: alone 0.834; forward selection stops at the inlier coverage and the PSR, 0.899).  The score-map
+#: (0.912 on the packaged tracker's frames; all of :data:`~vidtrack.filters.mil.CUES` 0.901, the quality
+#: alone 0.843; forward selection picks the PSR, the inlier coverage and ``present``, 0.916).  The score-map
 #: trackers and cbt: forward selection on :func:`held_out_auc`.  nh: the running colour likelihood and the
-#: verification gap (0.924; with the size gap as well 0.916, the uncalibrated confidence 0.767, all of
-#: :data:`~vidtrack.filters.score_trackers.CUES` 0.870); pf: the running colour likelihood, the verification
-#: gap and the particles' spread (0.954; 0.722, all 0.906); bayes: the running verification and colour
-#: likelihood and the spread (0.937; 0.813, all 0.882); cbt: the running colour likelihood, the running
-#: verification and the mode mass (0.927; the uncalibrated confidence 0.642, all of
-#: :data:`~vidtrack.filters.cbt.CUES` 0.887).
+#: verification gap (0.938; with the size gap as well 0.928, the uncalibrated confidence 0.764, all of
+#: :data:`~vidtrack.filters.score_trackers.CUES` 0.910); pf: the running colour likelihood, the verification
+#: gap and the particles' spread (0.942; 0.684, all 0.777); bayes: the running verification and colour
+#: likelihood and the spread (0.950; 0.684, all 0.913); cbt: the running colour likelihood, the running
+#: verification and the mode mass (0.923; the uncalibrated confidence 0.654, all of
+#: :data:`~vidtrack.filters.cbt.CUES` 0.866).
 MIL_CUES = tuple(c for c in mil_filter.CUES if c[0] in ("quality", "psr", "inlier_coverage"))
 NH_CUES = tuple(c for c in score_trackers.CUES if c[0] in ("colour_mean", "verify_gap"))
 PF_CUES = tuple(c for c in score_trackers.CUES if c[0] in ("colour_mean", "verify_gap", "spread"))
