@@ -63,7 +63,7 @@ OUT = Path(__file__).resolve().parents[1] / "vidtrack" / "filters" / "calibratio
 #: The cues the packaged files use, chosen on tune by leave-one-sequence-out.  mil (fit on 12 sequences,
 #: score the 13th, ROC AUC of the pooled held-out probabilities): quality, PSR and inlier coverage
 #: (0.912 on the packaged tracker's frames; all of :data:`~vidtrack.filters.mil.CUES` 0.901, the quality
-#: alone 0.843; forward selection picks the PSR, the inlier coverage and ``present``, 0.916).  The score-map
+#: alone 0.843; ``--select`` stops at the PSR and the inlier coverage, 0.913).  The score-map
 #: trackers and cbt: forward selection on :func:`held_out_auc`.  nh: the running colour likelihood and the
 #: verification gap (0.938; with the size gap as well 0.928, the uncalibrated confidence 0.764, all of
 #: :data:`~vidtrack.filters.score_trackers.CUES` 0.910); pf: the running colour likelihood, the verification
@@ -86,8 +86,8 @@ TRACKERS = {
     "cbt": (CBT_CUES, {"confidence": None}, "unmeasured"),
 }
 #: The cues ``--select`` chooses from.
-SELECT_FROM = {"nh": score_trackers.CUES, "pf": score_trackers.CUES, "bayes": score_trackers.CUES,
-               "cbt": cbt_filter.CUES}
+SELECT_FROM = {"mil": mil_filter.CUES, "nh": score_trackers.CUES, "pf": score_trackers.CUES,
+               "bayes": score_trackers.CUES, "cbt": cbt_filter.CUES}
 THRESHOLD_RULES = {
     "balance": "argmin over t of max(false_lost / 0.15, missed_loss / 0.02)",
     "unmeasured": "just above the probability of a frame without an update (the filter keeps its status: lost = the update was skipped)",

@@ -91,7 +91,7 @@ class ScaleFilter:
         model = np.array(self.model_size_, float)
         centre = np.asarray(centre, float)
         density = model / (np.asarray(size, float) * self.factors_[0])     # model pixels per image pixel
-        half = 0.5 * model * self.factors_[-1] / self.factors_[0] / density
+        half = 0.5 * np.asarray(size, float) * self.factors_[-1]             # the largest scale's half extent
         low, high = np.floor(centre - half) - 1.0, np.ceil(centre + half) + 1.0
         out = np.maximum(np.round((high - low) * density), 2.0).astype(int)
         window = cut_window(image, 0.5 * (low + high), high - low, (int(out[0]), int(out[1])))
