@@ -97,22 +97,23 @@ def draw_bar(image: np.ndarray, crossing: Crossing, k: int, rng: np.random.Gener
         return out
     u = (np.arange(x0, x1) + 0.5 - left) / crossing.width                 # 0 .. 1 across the bar
     shade = 0.55 + 0.45 * np.cos(np.pi * (np.clip(u, 0.0, 1.0) - 0.5))  # a cylinder lit from the front
-    colour = np.asarray(crossing.colour)[: out.shape[2] if out.ndim == 3 else 1]
-    bar = shade[None, :, None] * colour[None, None, :] + rng.normal(0.0, 6.0, (height, x1 - x0, colour.size))
+    channels = 1 if out.ndim == 2 else min(out.shape[2], 3)   # grey, BGR, or BGR under an alpha channel left as is
+    colour = np.asarray(crossing.colour)[:channels]
+    bar = shade[None, :, None] * colour[None, None, :] + rng.normal(0.0, 6.0, (height, x1 - x0, channels))
     bar = np.clip(bar, 0, 255).astype(out.dtype)
     if out.ndim == 2:
         out[:, x0:x1] = bar[:, :, 0]
     else:
-        out[:, x0:x1] = bar
+        out[:, x0:x1, :channels] = bar
     return out
 
 
 def occlude_sequence(sequence, out: Path, *, first: int, period: int, duration: float, width: float,
                      seed: int) -> tuple[int, int]:
     """Write ``sequence`` with its crossings under ``out/<name>``; returns ``(frames, crossings)``."""
-    truth = np.array([sequence.to_pixels(sequence.ground_truth_box(row)).as_array()
-                      if ok else np.zeros(4) for row, ok in enumerate(annotated_rows(sequence.ground_truth))])
     annotated = annotated_rows(sequence.ground_truth)
+    truth = np.array([sequence.to_pixels(sequence.ground_truth_box(row)).as_array() if ok else np.zeros(4)
+                      for row, ok in enumerate(annotated)])
     rng = np.random.default_rng(seed)
     crossings = plan_crossings(truth, annotated, first=first, period=period, duration=duration, width=width,
                                rng=rng)

@@ -16,6 +16,16 @@ SAMPLE_GT = REPO / "data" / "sample_groundtruth.txt"
 SEQUENCES = REPO.parent / "shared" / "data" / "sequences"
 
 
+def load_script(name: str):
+    """The module of ``scripts/<name>.py`` (the scripts are not a package)."""
+    import importlib.util
+
+    spec = importlib.util.spec_from_file_location(name, REPO / "scripts" / f"{name}.py")
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
 def textured_patch(rng: np.random.Generator, h: int, w: int) -> np.ndarray:
     """A colourful checker patch with grain, ``(h, w, 3) uint8``."""
     yy, xx = np.mgrid[0:h, 0:w]

@@ -2,24 +2,19 @@
 
 from __future__ import annotations
 
-import importlib.util
 from pathlib import Path
 
 import cv2
 import numpy as np
 import pytest
 
+from conftest import load_script
 from vidtrack.eval.synthetic import write_sequence
-
-SCRIPT = Path(__file__).resolve().parents[1] / "scripts" / "occlude_sequences.py"
 
 
 @pytest.fixture(scope="module")
 def occlude():
-    spec = importlib.util.spec_from_file_location("occlude_sequences", SCRIPT)
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
+    return load_script("occlude_sequences")
 
 
 def frames_of(folder: Path) -> list[np.ndarray]:

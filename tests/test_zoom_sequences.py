@@ -2,13 +2,13 @@
 
 from __future__ import annotations
 
-import importlib.util
 from pathlib import Path
 
 import cv2
 import numpy as np
 import pytest
 
+from conftest import load_script
 from vidtrack.eval.synthetic import write_sequence
 
 SCRIPT = Path(__file__).resolve().parents[1] / "scripts" / "zoom_sequences.py"
@@ -16,10 +16,7 @@ SCRIPT = Path(__file__).resolve().parents[1] / "scripts" / "zoom_sequences.py"
 
 @pytest.fixture(scope="module")
 def zoom():
-    spec = importlib.util.spec_from_file_location("zoom_sequences", SCRIPT)
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
+    return load_script("zoom_sequences")
 
 
 def red_extent(image: np.ndarray) -> np.ndarray:
