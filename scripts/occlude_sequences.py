@@ -23,6 +23,13 @@ The copy is in the OTB layout (``img/`` + ``groundtruth_rect.txt``, 1-based
 boxes) in a folder outside the repository; a MIL-layout sequence's run range
 is not carried over (the copy holds every frame), and its crossings are
 placed from the annotated row nearest each crossing frame.
+
+One copy is a noisy measure: a crossing either costs a tracker the target
+or not, and which one turns on details.  The mean AUC of ``mil`` over the
+13 *tune* sequences differs by up to 0.04 between random seeds on the same
+copy, and a setting that gains 0.03 on one copy and seed can lose as much on
+another.  Compare two settings seed by seed on several copies (other
+``--first``, ``--seed``, ``--width`` and ``--duration``).
 """
 
 from __future__ import annotations
