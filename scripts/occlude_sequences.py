@@ -26,9 +26,9 @@ placed from the annotated row nearest each crossing frame.
 
 One copy is a noisy measure: a crossing either costs a tracker the target
 or not, and which one turns on details.  The mean AUC of ``mil`` over the
-13 *tune* sequences differs by up to 0.04 between random seeds on the same
-copy, and a setting that gains 0.03 on one copy and seed can lose as much on
-another.  Compare two settings seed by seed on several copies (other
+13 *tune* sequences differs by as much as 0.044 between random seeds on
+the same copy, and a setting that gains 0.03 on one copy and seed can lose
+as much on another.  Compare two settings seed by seed on several copies (other
 ``--first``, ``--seed``, ``--width`` and ``--duration``).
 """
 

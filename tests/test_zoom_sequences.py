@@ -8,10 +8,8 @@ import cv2
 import numpy as np
 import pytest
 
-from conftest import load_script
+from conftest import REPO, load_script
 from vidtrack.eval.synthetic import write_sequence
-
-SCRIPT = Path(__file__).resolve().parents[1] / "scripts" / "zoom_sequences.py"
 
 
 @pytest.fixture(scope="module")
@@ -63,5 +61,5 @@ def test_rows_not_annotated_stay_zero(zoom, tmp_path):
 def test_the_copy_is_refused_inside_the_repository(zoom, tmp_path):
     write_sequence(tmp_path / "src" / "Still", frames=3)
     with pytest.raises(SystemExit, match="outside the repository"):
-        zoom.main([str(tmp_path / "src"), str(SCRIPT.parents[1] / "zoom-copy")])
-    assert not (SCRIPT.parents[1] / "zoom-copy").exists()
+        zoom.main([str(tmp_path / "src"), str(REPO / "zoom-copy")])
+    assert not (REPO / "zoom-copy").exists()
