@@ -20,6 +20,7 @@ from vidtrack.measure.detectors import make_detector
 from vidtrack.measure.features import cell_features, orientation_cells
 from vidtrack.measure.mil_fusion import fuse_peak
 from vidtrack.measure.scale_filter import ScaleFilter
+from vidtrack.recipes import build_tracker
 from vidtrack.types import Box, Estimate, Frame
 
 
@@ -382,6 +383,27 @@ def test_make_detector_configures_the_score_map_detector():
     img, patch = scene(rng, box.center, box.size)
     detector.initialize(Frame(0, img), box)
     assert detector.filter_.scale_ is None     # the scale_filter setting reached the filter
+
+
+@pytest.mark.parametrize("name", ["nh", "pf", "bayes", "cbt"])
+def test_the_score_map_trackers_take_the_detector_settings_as_the_cf_group(name):
+    """``--set cf.FIELD=VALUE`` (``cbt``: ``detections.cf.FIELD``) reaches the correlation-filter detector of every
+    tracker built on it; an unknown field is refused with the group's valid names."""
+    rng = np.random.default_rng(6)
+    box = Box.from_center(100, 100, 30, 36)
+    img, _ = scene(rng, box.center, box.size)
+    default = build_tracker(name, seed=0)
+    group = "detections.cf" if name == "cbt" else "cf"   # cbt's detector is part of how it finds detections
+    tracker = build_tracker(name, seed=0, settings={f"{group}.learn_above": "0.8", f"{group}.scale_filter": "false"})
+    for built in (default, tracker):
+        built.initialize(Frame(0, img), box)
+    detector = tracker.measurer.inner.detector_ if name == "cbt" else tracker.measurer.inner
+    assert detector.config == CorrelationDetectorConfig(learn_above=0.8, scale_filter=False)
+    assert detector.filter_.scale_ is None
+    detector = default.measurer.inner.detector_ if name == "cbt" else default.measurer.inner
+    assert detector.config == CorrelationDetectorConfig() and detector.filter_.scale_ is not None
+    with pytest.raises(UsageError, match=f"{group}.learn_above"):
+        build_tracker(name, settings={f"{group}.learn_abov": "0.8"})
 
 
 def test_mil_whole_frame_search_is_bounded_by_the_box():

@@ -13,12 +13,13 @@ sorts that out, as in "Learning Object Tracking in Image Sequences"
 
 from __future__ import annotations
 
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 from scipy.ndimage import maximum_filter
 
 from ..types import Box, Detections, Estimate, Frame, ScoreMap
+from .correlation_score_map import CorrelationDetectorConfig
 from .detectors import make_detector
 
 
@@ -92,8 +93,9 @@ class DetectionMeasurer:
         Lowest score reported as a detection.
     max_detections
         At most this many detections per frame.
-    scale_filter
-        The ``cf`` detector estimates the box size (off: the init size).
+    cf
+        The ``cf`` detector's configuration
+        (:class:`~vidtrack.measure.correlation_score_map.CorrelationDetectorConfig`).
     """
 
     detector: str = "cf"
@@ -102,10 +104,10 @@ class DetectionMeasurer:
     nms_fraction: float = 0.3
     min_score: float = 0.4
     max_detections: int = 10
-    scale_filter: bool = True
+    cf: CorrelationDetectorConfig = field(default_factory=CorrelationDetectorConfig)
 
     def initialize(self, frame: Frame, box: Box) -> None:
-        options = {"margin": self.margin} if self.detector == "ncc" else {"scale_filter": self.scale_filter}
+        options = {"margin": self.margin} if self.detector == "ncc" else {"cf": self.cf}
         self.detector_ = make_detector(self.detector, **options)
         self.detector_.initialize(frame, box)
 

@@ -14,19 +14,20 @@ from ..errors import UsageError
 DETECTORS = ("cf", "ncc", "face")
 
 
-def make_detector(name: str = "cf", **options):
+def make_detector(name: str = "cf", cf=None, **options):
     """The score-map measurer called ``name``, built with ``options``.
 
     For ``cf`` the options are fields of
     :class:`~vidtrack.measure.correlation_score_map.CorrelationDetectorConfig`
     (values or strings, converted to the field's type; an unknown one raises
-    :class:`~vidtrack.errors.UsageError` naming the valid ones); for the
-    others, keyword arguments of the measurer.
+    :class:`~vidtrack.errors.UsageError` naming the valid ones), set on top
+    of ``cf`` (that configuration; its defaults when ``None``); for the
+    others, keyword arguments of the measurer, and ``cf`` is not used.
     """
     if name == "cf":
         from .correlation_score_map import CorrelationDetectorConfig, CorrelationScoreMapMeasurer
 
-        return CorrelationScoreMapMeasurer(with_settings(CorrelationDetectorConfig(), options))
+        return CorrelationScoreMapMeasurer(with_settings(cf or CorrelationDetectorConfig(), options))
     if name == "ncc":
         from .score_map import NCCScoreMapMeasurer
 

@@ -13,13 +13,14 @@ by ``vidtrack learn cbt``).
 
 from __future__ import annotations
 
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, fields
 from typing import Literal
 
 from ..config import option
 from ..filters.box import MeasuredSizeFilter
 from ..filters.cbt import CBTFilter
 from ..filters.cbt_model import CBTModel
+from ..measure.correlation_score_map import CorrelationDetectorConfig
 from ..measure.detections import DetectionMeasurer
 from ..measure.verification import VerifiedMeasurer
 from ..tracker import Recipe, Tracker
@@ -47,7 +48,8 @@ class DetectionsConfig:
     nms_fraction: float = option(0.3, "non-maximum suppression radius, fraction of the smaller box side")
     min_score: float = option(0.4, "lowest detector score reported as a detection")
     max_detections: int = option(10, "at most this many detections per frame")
-    scale_filter: bool = option(True, "cf: the detector estimates the box size (false: the init size)")
+    cf: CorrelationDetectorConfig = option(CorrelationDetectorConfig(), "the correlation-filter detector "
+                                           "(detector cf): its filter, scale search, learning and re-detection")
 
 
 @dataclass(frozen=True)
@@ -99,7 +101,8 @@ def cbt_filter(config: CBTConfig, model: CBTModel | None = None) -> CBTFilter:
 def build_cbt(config: CBTConfig, seed=None) -> Tracker:
     """CBT tracker; reads ``config.model`` (a UsageError names a missing or malformed file)."""
     model = None if config.model is None else CBTModel.load(config.model)
-    measurer = VerifiedMeasurer(DetectionMeasurer(detector=config.detector, **asdict(config.detections)))
+    detections = {f.name: getattr(config.detections, f.name) for f in fields(config.detections)}  # cf stays a config
+    measurer = VerifiedMeasurer(DetectionMeasurer(detector=config.detector, **detections))
     return Tracker(measurer, MeasuredSizeFilter(cbt_filter(config, model)))
 
 

@@ -20,12 +20,14 @@ import numpy as np
 from ..config import option
 from ..filters.box import MeasuredSizeFilter
 from ..filters.score_trackers import GridBayesBoxFilter, NormalHedgeBoxFilter, ParticleBoxFilter
+from ..measure.correlation_score_map import CorrelationDetectorConfig
 from ..measure.detectors import make_detector
 from ..measure.verification import VerifiedMeasurer
 from ..tracker import Recipe, Tracker
 
 Detector = Literal["cf", "ncc", "face"]
 DETECTOR_DOC = "the score map: cf (correlation filter), ncc (grey template) or face (OpenCV's Haar cascade)"
+CF_DOC = "the correlation-filter detector (detector cf): its filter, scale search, learning and re-detection"
 
 
 @dataclass(frozen=True)
@@ -38,6 +40,7 @@ class NormalHedgeConfig:
     sigma_star: float = option(0.25, "random-walk step of a re-sampled action, in box sizes")
     confidence: str | None = option("nh", "calibrated confidence: vidtrack/filters/calibration/<name>.json "
                                            "(none: concentration times quality)")
+    cf: CorrelationDetectorConfig = option(CorrelationDetectorConfig(), CF_DOC)
 
 
 @dataclass(frozen=True)
@@ -49,6 +52,7 @@ class ParticleConfig:
     sigma_d: float = option(0.2, "random-walk step of a particle per frame, in box sizes")
     confidence: str | None = option("pf", "calibrated confidence: vidtrack/filters/calibration/<name>.json "
                                            "(none: concentration times quality)")
+    cf: CorrelationDetectorConfig = option(CorrelationDetectorConfig(), CF_DOC)
 
 
 @dataclass(frozen=True)
@@ -59,6 +63,7 @@ class GridBayesConfig:
     sigma_d: float = option(0.1, "random-walk step per frame, in box sizes")
     confidence: str | None = option("bayes", "calibrated confidence: vidtrack/filters/calibration/<name>.json "
                                            "(none: concentration times quality)")
+    cf: CorrelationDetectorConfig = option(CorrelationDetectorConfig(), CF_DOC)
 
 
 def _calibrated(config) -> str | None:
@@ -66,27 +71,28 @@ def _calibrated(config) -> str | None:
     return config.confidence if config.detector == "cf" else None
 
 
-def _tracker(detector: str, box_filter) -> Tracker:
+def _tracker(config, box_filter) -> Tracker:
     # the box size follows the detector's scale estimate (the cf detector searches scales); the
     # verification map (first-frame appearance) is a cue of the calibrated confidence only
-    return Tracker(VerifiedMeasurer(make_detector(detector)), MeasuredSizeFilter(box_filter))
+    options = {"cf": config.cf} if config.detector == "cf" else {}
+    return Tracker(VerifiedMeasurer(make_detector(config.detector, **options)), MeasuredSizeFilter(box_filter))
 
 
 def build_nh(config: NormalHedgeConfig, seed=None) -> Tracker:
-    return _tracker(config.detector, NormalHedgeBoxFilter(n_actions=config.n_actions, alpha=config.alpha,
+    return _tracker(config, NormalHedgeBoxFilter(n_actions=config.n_actions, alpha=config.alpha,
                                                           sigma_star=config.sigma_star,
                                                           confidence=_calibrated(config),
                                                           rng=np.random.default_rng(seed)))
 
 
 def build_pf(config: ParticleConfig, seed=None) -> Tracker:
-    return _tracker(config.detector, ParticleBoxFilter(n_particles=config.n_particles, sigma_d=config.sigma_d,
+    return _tracker(config, ParticleBoxFilter(n_particles=config.n_particles, sigma_d=config.sigma_d,
                                                        rng=np.random.default_rng(seed),
                                                        confidence=_calibrated(config)))
 
 
 def build_bayes(config: GridBayesConfig, seed=None) -> Tracker:
-    return _tracker(config.detector, GridBayesBoxFilter(sigma_d=config.sigma_d, rng=np.random.default_rng(seed),
+    return _tracker(config, GridBayesBoxFilter(sigma_d=config.sigma_d, rng=np.random.default_rng(seed),
                                                         confidence=_calibrated(config)))
 
 
