@@ -16,12 +16,18 @@ for a tracker whose status feeds back into its search; with the packaged
 rules none does (``mil``: ``fusion.search_when_lost`` off; the score-map
 trackers: ``lost`` as without the calibration), one pass suffices.  ``--cache DIR``
 keeps the frames to refit without tracking again; ``--table`` prints false
-lost and missed loss at every threshold.
+lost and missed loss at every threshold (``mil``: of its lost rule, on the
+held-out frames).
 
-``mil``'s ``lost`` threshold is chosen on the same frames: the probability
-``t`` (on a grid 0.05 .. 0.95) minimising ``max(false_lost / 0.15,
-missed_loss / 0.02)``, i.e. balancing the two failure rates of
-:mod:`vidtrack.eval.confidence` against the targets they are held to.  The
+``mil``'s ``lost`` status has a model of its own: a second logistic
+regression on the same standardised cues, of ``IoU > 0`` (the box still
+overlaps the target), the question ``lost`` answers.  ``lost`` is that
+presence probability below ``t`` for ``k`` scored frames in a row, and ``t``
+(0.01 .. 0.99) and ``k`` (1 .. 5) are chosen on the *tune* frames held out
+sequence by sequence (each sequence's presence from the fit on the others):
+the pair minimising ``max(false_lost / 0.15, missed_loss / 0.02)``, i.e.
+balancing the two failure rates of :mod:`vidtrack.eval.confidence` against
+the targets they are held to, on frames the fit has not seen.  The
 score-map trackers and ``cbt`` keep their own status (``lost``: the update
 was skipped; ``cbt``: its uncalibrated confidence below its ``lost_below``),
 so their detector's re-detection, which it starts, and their boxes are
@@ -53,7 +59,7 @@ from vidtrack.eval.datasets import annotated_rows, load_dataset  # noqa: E402
 from vidtrack.filters import cbt as cbt_filter  # noqa: E402
 from vidtrack.filters import mil as mil_filter  # noqa: E402
 from vidtrack.filters import score_trackers  # noqa: E402
-from vidtrack.filters.calibration import Calibration, load_calibration, logistic_probability  # noqa: E402
+from vidtrack.filters.calibration import Calibration, LostRule, load_calibration, logistic_probability  # noqa: E402
 from vidtrack.recipes import build_tracker  # noqa: E402
 from vidtrack.sources import ImageFolderSource  # noqa: E402
 
@@ -85,11 +91,14 @@ TRACKERS = {
     "bayes": (BAYES_CUES, {"confidence": None}, "unmeasured"),
     "cbt": (CBT_CUES, {"confidence": None}, "unmeasured"),
 }
+#: The runs of low presence ``mil``'s lost rule may require (``lost_after``).
+LOST_AFTER = (1, 2, 3, 4, 5)
 #: The cues ``--select`` chooses from.
 SELECT_FROM = {"mil": mil_filter.CUES, "nh": score_trackers.CUES, "pf": score_trackers.CUES,
                "bayes": score_trackers.CUES, "cbt": cbt_filter.CUES}
 THRESHOLD_RULES = {
-    "balance": "argmin over t of max(false_lost / 0.15, missed_loss / 0.02)",
+    "balance": "presence P(IoU > 0) below lost_below for lost_after frames in a row; the pair is the argmin of "
+               "max(false_lost / 0.15, missed_loss / 0.02) on the tune frames, each sequence held out of the fit",
     "unmeasured": "just above the probability of a frame without an update (the filter keeps its status: lost = the update was skipped)",
 }
 
@@ -117,30 +126,79 @@ def collect(name: str, sequences, seeds, calibrated: bool = False) -> tuple[list
             valid = annotated_rows(seq.ground_truth[start:stop])
             for k in range(1, len(boxes)):
                 if valid[k]:
-                    rows.append({**scalars[k], "sequence": seq.name})
+                    rows.append({**scalars[k], "sequence": seq.name, "seed": seed})
                     ious.append(iou[k])
             print(f"  {name} seed {seed} {seq.name}: {len(boxes)} frames", file=sys.stderr, flush=True)
     return rows, np.array(ious)
 
 
-def threshold_table(p: np.ndarray, ious: np.ndarray) -> list[tuple[float, float, float, float]]:
-    """``(t, false lost, missed loss, lost rate)`` of ``lost = p < t`` for t = 0.05, 0.10, ..., 0.95."""
+def run_starts(rows: list[dict]) -> np.ndarray:
+    """``(N,)`` bool: the row opens a tracking run (its sequence or seed differs from the previous row's)."""
+    keys = [(r.get("sequence", ""), r.get("seed", 0)) for r in rows]
+    return np.array([k == 0 or keys[k] != keys[k - 1] for k in range(len(keys))], bool)
+
+
+def low_runs(p: np.ndarray, starts: np.ndarray, t: float) -> np.ndarray:
+    """``(N,)`` int: how many rows in a row, up to this one and within its run, have ``p < t``."""
+    out = np.zeros(len(p), int)
+    count = 0
+    for k, (value, start) in enumerate(zip(p, starts)):
+        count = (0 if start else count) + 1 if value < t else 0
+        out[k] = count
+    return out
+
+
+def held_out_presence(X: np.ndarray, rows: list[dict], ious: np.ndarray, C: float,
+                      above: float = 0.0) -> np.ndarray:
+    """``P(IoU > above)`` of each row from the logistic fit on the other sequences' rows (their own standardisation)."""
+    from sklearn.linear_model import LogisticRegression
+
+    y = ious > above
+    sequences = np.array([r.get("sequence", "") for r in rows])
+    p = np.zeros(len(rows))
+    for name in np.unique(sequences):
+        test = sequences == name
+        mean, scale = X[~test].mean(axis=0), X[~test].std(axis=0)
+        scale = np.where(scale > 1e-9, scale, 1.0)
+        model = LogisticRegression(C=C, max_iter=1000).fit((X[~test] - mean) / scale, y[~test])
+        p[test] = model.predict_proba((X[test] - mean) / scale)[:, 1]
+    return p
+
+
+def choose_lost_rule(p: np.ndarray, ious: np.ndarray, starts: np.ndarray) -> tuple[float, int, float, float]:
+    """``(t, k, false lost, missed loss)``: lost = ``p < t`` for ``k`` rows in a row, balancing the two rates."""
+    best = (np.inf, 0.5, 1, np.nan, np.nan)
+    for t in np.round(np.arange(0.01, 1.0, 0.01), 2):
+        runs = low_runs(p, starts, t)
+        for k in LOST_AFTER:
+            status = np.where(runs >= k, conf_metrics.LOST, conf_metrics.TRACKING)
+            fl, ml = conf_metrics.false_lost(ious, status), conf_metrics.missed_loss(ious, status)
+            cost = max(0.0 if np.isnan(fl) else fl / 0.15, 0.0 if np.isnan(ml) else ml / 0.02)
+            if cost < best[0]:
+                best = (cost, float(t), k, fl, ml)
+    return best[1:]
+
+
+def threshold_table(p: np.ndarray, ious: np.ndarray, starts: np.ndarray,
+                    k: int) -> list[tuple[float, float, float, float]]:
+    """``(t, false lost, missed loss, lost rate)`` of lost = ``p < t`` for ``k`` rows in a row, t = 0.05 .. 0.95."""
     table = []
     for t in np.round(np.arange(0.05, 0.96, 0.05), 2):
-        status = np.where(p < t, conf_metrics.LOST, conf_metrics.TRACKING)
+        lost = low_runs(p, starts, t) >= k
+        status = np.where(lost, conf_metrics.LOST, conf_metrics.TRACKING)
         table.append((float(t), conf_metrics.false_lost(ious, status), conf_metrics.missed_loss(ious, status),
-                      float(np.mean(p < t))))
+                      float(np.mean(lost))))
     return table
 
 
-def choose_threshold(p: np.ndarray, ious: np.ndarray) -> float:
-    """The ``lost`` threshold balancing false lost (target 0.15) and missed loss (target 0.02) on these frames."""
-    best, best_t = np.inf, 0.5
-    for t, fl, ml, _ in threshold_table(p, ious):
-        cost = max(0.0 if np.isnan(fl) else fl / 0.15, 0.0 if np.isnan(ml) else ml / 0.02)
-        if cost < best:
-            best, best_t = cost, t
-    return best_t
+def lost_status(cal: Calibration, rows: list[dict]) -> np.ndarray:
+    """The status :class:`~vidtrack.filters.calibration.LostRule` gives ``rows``, run by run."""
+    rule, status = LostRule(cal), []
+    for row, start in zip(rows, run_starts(rows)):
+        if start:
+            rule.reset()
+        status.append(conf_metrics.LOST if rule.lost(row) else conf_metrics.TRACKING)
+    return np.array(status)
 
 
 def fit(name: str, rows: list[dict], ious: np.ndarray, C: float) -> Calibration:
@@ -224,12 +282,15 @@ def fit_cues(cues, rule: str, rows: list[dict], ious: np.ndarray, C: float) -> C
     scale = np.where(scale > 1e-9, scale, 1.0)
     model = LogisticRegression(C=C, max_iter=1000).fit((X - mean) / scale, y)
     coef, intercept = model.coef_[0], float(model.intercept_[0])
-    p = logistic_probability(X, mean, scale, coef, intercept)
-    if rule == "balance":
-        threshold = choose_threshold(p, ious)
-    else:   # the probability of a frame whose every cue takes its missing value, rounded up
-        unmeasured = float(logistic_probability(np.clip(fill, lower, upper), mean, scale, coef, intercept))
-        threshold = float(np.ceil(unmeasured * 1000.0 + 1e-9) / 1000.0)
+    if rule == "balance":   # the lost status from the presence P(IoU > 0), its rule chosen on held-out frames
+        presence = LogisticRegression(C=C, max_iter=1000).fit((X - mean) / scale, ious > 0)
+        threshold, lost_after, _, _ = choose_lost_rule(held_out_presence(X, rows, ious, C), ious, run_starts(rows))
+        return Calibration(cues=names, mean=mean, scale=scale, coef=coef, intercept=intercept, fill=fill,
+                           lower=lower, upper=upper, lost_below=threshold, presence_coef=presence.coef_[0],
+                           presence_intercept=float(presence.intercept_[0]), lost_after=lost_after)
+    # the probability of a frame whose every cue takes its missing value, rounded up
+    unmeasured = float(logistic_probability(np.clip(fill, lower, upper), mean, scale, coef, intercept))
+    threshold = float(np.ceil(unmeasured * 1000.0 + 1e-9) / 1000.0)
     return Calibration(cues=names, mean=mean, scale=scale, coef=coef, intercept=intercept, fill=fill,
                        lower=lower, upper=upper, lost_below=threshold)
 
@@ -286,11 +347,16 @@ def fit_pass(name, sequences, seeds, args, *, calibrated: bool):
         p = np.where(kept, p, np.minimum(p, 0.99 * cal.lost_below))
         status = np.where(kept, conf_metrics.TRACKING, conf_metrics.LOST)
     else:
-        status = np.where(p < cal.lost_below, conf_metrics.LOST, conf_metrics.TRACKING)
+        status = lost_status(cal, rows)
     m = conf_metrics.confidence_metrics(ious, p, status)
     weights = ", ".join(f"{c} {w:+.2f}" for c, w in zip(cal.cues, cal.coef))
+    lost = f"lost below {cal.lost_below:.3f}"
+    if cal.presence_coef is not None:
+        presence = ", ".join(f"{c} {w:+.2f}" for c, w in zip(cal.cues, cal.presence_coef))
+        lost = (f"presence: {presence}; intercept {cal.presence_intercept:+.2f}; lost below {cal.lost_below:.3f} "
+                f"for {cal.lost_after} frame(s)")
     print(f"{name}{' (pass on the calibrated tracker)' if calibrated else ''}: {len(rows)} frames; {weights}; "
-          f"intercept {cal.intercept:+.2f}; lost below {cal.lost_below:.3f}")
+          f"intercept {cal.intercept:+.2f}; {lost}")
     print(f"  tune: ROC AUC {m['confidence_auc']:.3f}, ECE {m['ece']:.3f}, false lost {m['false_lost']:.3f}, "
           f"missed loss {m['missed_loss']:.3f}, lost rate {m['lost_rate']:.3f}", flush=True)
     if all("sequence" in r for r in rows):
@@ -298,8 +364,23 @@ def fit_pass(name, sequences, seeds, args, *, calibrated: bool):
     if args.select and name in SELECT_FROM:
         chosen, lines = select_cues(SELECT_FROM[name], rows, ious, args.C)
         print("\n".join(lines) + f"\n  selected: {', '.join(c[0] for c in chosen)}", flush=True)
-    if args.table:
-        for t, fl, ml, rate in threshold_table(p, ious):
+    if cal.presence_coef is not None:   # the lost rule on frames the fit has not seen
+        held = held_out_presence(cue_matrix(TRACKERS[name][0], rows), rows, ious, args.C)
+        starts = run_starts(rows)
+        status = np.where(low_runs(held, starts, cal.lost_below) >= cal.lost_after, conf_metrics.LOST,
+                          conf_metrics.TRACKING)
+        print(f"  tune, each sequence held out: false lost {conf_metrics.false_lost(ious, status):.3f}, "
+              f"missed loss {conf_metrics.missed_loss(ious, status):.3f}", flush=True)
+        confidence = held_out_presence(cue_matrix(TRACKERS[name][0], rows), rows, ious, args.C, above=0.5)
+        t, k, fl, ml = choose_lost_rule(confidence, ious, starts)
+        print(f"  (the same rule on the confidence P(IoU > 0.5) instead, best below {t:.2f} for {k} frame(s): "
+              f"false lost {fl:.3f}, missed loss {ml:.3f})", flush=True)
+        if args.table:
+            for t, fl, ml, rate in threshold_table(held, ious, starts, cal.lost_after):
+                print(f"    held out, lost below {t:.2f}: false lost {fl:.3f}, missed loss {ml:.3f}, "
+                      f"lost rate {rate:.3f}")
+    elif args.table:
+        for t, fl, ml, rate in threshold_table(p, ious, np.ones(len(p), bool), 1):
             print(f"    lost below {t:.2f}: false lost {fl:.3f}, missed loss {ml:.3f}, lost rate {rate:.3f}")
     return cal, rows, ious
 

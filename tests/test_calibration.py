@@ -8,7 +8,7 @@ import pytest
 from vidtrack.errors import UsageError
 from vidtrack.filters import mil as mil_filter
 from vidtrack.filters import score_trackers
-from vidtrack.filters.calibration import Calibration, load_calibration, logistic_probability
+from vidtrack.filters.calibration import Calibration, LostRule, load_calibration, logistic_probability
 from vidtrack.filters.mil import KalmanConfig, MILKalmanFilter
 from vidtrack.types import LOST, TRACKING, Box, Superpixels
 
@@ -34,6 +34,29 @@ def test_probability_is_the_logistic_of_the_standardised_clipped_cues():
     assert Calibration.from_dict(cal.to_dict()).probability({"a": 0.5}) == pytest.approx(cal.probability({"a": 0.5}))
 
 
+def test_the_presence_model_reads_the_same_cues_and_round_trips():
+    cal = _calibration(presence_coef=np.array([0.5, 2.0]), presence_intercept=3.0, lost_after=3)
+    z = 3.0 + 0.5 * (3.0 - 1.0) / 2.0 + 2.0 * 2.0      # the same standardised, clipped cues, other weights
+    assert cal.presence({"a": 3.0, "b": 5.0}) == pytest.approx(1.0 / (1.0 + np.exp(-z)))
+    again = Calibration.from_dict(cal.to_dict())
+    assert again.lost_after == 3 and again.presence({"a": 0.5}) == pytest.approx(cal.presence({"a": 0.5}))
+    plain = _calibration()   # without a presence model the status reads P(IoU > 0.5) itself
+    assert plain.presence({"a": 0.5}) == plain.probability({"a": 0.5}) and "presence" not in plain.to_dict()
+
+
+def test_lost_needs_lost_after_low_frames_in_a_row_or_no_measurement():
+    # presence = logistic(2 (a - 1) / 2): a = 1 gives 0.5, below lost_below 0.6; a = 3 gives 0.88
+    rule = LostRule(_calibration(presence_coef=np.array([2.0, 0.0]), presence_intercept=0.0, lost_below=0.6,
+                                 lost_after=3))
+    low, high = {"a": 1.0}, {"a": 3.0}
+    assert [rule.lost(c) for c in (low, low, high, low, low, low, low)] == [False, False, False, False, False,
+                                                                           True, True]
+    assert rule.lost(high, unmeasured=True) and not rule.lost(high)
+    rule.lost(low), rule.lost(low)
+    rule.reset()
+    assert not rule.lost(low)
+
+
 def test_bad_calibration_files_are_usage_errors():
     with pytest.raises(UsageError, match="no calibrated confidence"):
         load_calibration("no-such-tracker")
@@ -41,6 +64,10 @@ def test_bad_calibration_files_are_usage_errors():
         Calibration.from_dict({**_calibration().to_dict(), "coef": [1.0]})
     with pytest.raises(UsageError, match="missing"):
         Calibration.from_dict({"cues": ["a"]})
+    with pytest.raises(UsageError, match="lost_after"):
+        Calibration.from_dict({**_calibration().to_dict(), "lost_after": 0})
+    with pytest.raises(UsageError, match="missing"):
+        Calibration.from_dict({**_calibration().to_dict(), "presence": {"coef": [1.0, 1.0]}})
 
 
 MIL_GOOD = {"measured": 1.0, "quality": 0.9, "psr": 20.0, "svm_margin": 1.5, "inlier_coverage": 0.6,
@@ -71,7 +98,7 @@ def _measurement(box: Box, quality: float, psr: float) -> Superpixels:
                        stages={"psr": psr, "inlier_coverage": 0.6})
 
 
-def test_mil_filter_reports_the_calibrated_probability_and_lost_below_its_threshold():
+def test_mil_filter_reports_the_calibrated_probability_and_lost_by_the_presence_rule():
     box = Box(100, 100, 40, 60)
     kf = MILKalmanFilter(KalmanConfig(confidence="mil"))
     kf.initialize(box)
@@ -80,12 +107,22 @@ def test_mil_filter_reports_the_calibrated_probability_and_lost_below_its_thresh
     good = kf.update(_measurement(box, 0.9, 20.0))
     assert good.status == TRACKING and good.scalars["measured"] == 1.0
     assert good.confidence == pytest.approx(cal.probability(good.scalars))
-    assert good.confidence >= cal.lost_below and good.scalars["svm_margin"] == pytest.approx(0.75)
-    for _ in range(5):   # nothing measured: the probability falls below the threshold
+    assert cal.presence(good.scalars) >= cal.lost_below and good.scalars["svm_margin"] == pytest.approx(0.75)
+    for _ in range(5):   # nothing measured: lost at once, the probability low
         kf.predict()
         coast = kf.update(None)
+        assert coast.status == LOST
     assert coast.scalars["measured"] == 0.0 and coast.scalars["coast"] == pytest.approx(np.log(6.0))
-    assert coast.status == LOST and coast.confidence < cal.lost_below < good.confidence
+    assert coast.confidence < 0.1 < 0.5 < good.confidence and cal.presence(coast.scalars) < cal.lost_below
+    # a weak peak (PSR 4): tracking until the presence has stayed low for lost_after frames
+    kf.predict()
+    kf.update(_measurement(box, 0.9, 20.0))
+    weak = []
+    for _ in range(cal.lost_after + 1):
+        kf.predict()
+        weak.append(kf.update(_measurement(box, 0.2, 4.0)))
+    assert all(cal.presence(w.scalars) < cal.lost_below for w in weak)
+    assert [w.status for w in weak] == [TRACKING] * (cal.lost_after - 1) + [LOST, LOST]
     raw = MILKalmanFilter(KalmanConfig(confidence=None))   # uncalibrated: the quality, lost when not measured
     raw.initialize(box)
     raw.predict()

@@ -25,7 +25,7 @@ import numpy as np
 
 from ..config import option
 from ..types import LOST, TRACKING, Box, Estimate, Frame, Measurement
-from .calibration import load_calibration
+from .calibration import LostRule, load_calibration
 from .kalman import kf_predict, kf_update, motion_model
 
 # ------------------------------------------------------------------ pure maths
@@ -113,8 +113,9 @@ class KalmanConfig:
     occlusion_onset: int = option(8, "an occlusion is a coverage fall from a wholly visible frame within this many "
                                      "frames (a slower fall is a change of appearance)")
     confidence: str | None = option("mil", "calibrated confidence: the cues mapped to P(IoU > 0.5) by "
-                                           "vidtrack/filters/calibration/<name>.json, lost below its threshold "
-                                           "(none: the measurement's quality, lost when not measured)")
+                                           "vidtrack/filters/calibration/<name>.json, lost when its P(IoU > 0) "
+                                           "stays below its threshold (none: the measurement's quality, lost "
+                                           "when not measured)")
 
 
 class MILKalmanFilter:
@@ -141,6 +142,7 @@ class MILKalmanFilter:
     def initialize(self, box: Box, frame: Frame | None = None) -> None:
         c = self.config
         self.calibration_ = None if c.confidence is None else load_calibration(c.confidence)
+        self.lost_rule_ = None if self.calibration_ is None else LostRule(self.calibration_)
         self.unmeasured_run_ = 0
         self.coverage_level_: float | None = None
         self.occluded_run_ = 0
@@ -253,8 +255,10 @@ class MILKalmanFilter:
         centre, in box sizes), ``motion`` (the
         innovation's Mahalanobis length), ``scale_change`` (``|log|`` of the
         measured over the predicted area), ``coast`` (``log(1 + n)``, ``n``
-        frames without an update) and ``present``.  No measurement at all
-        (``None``) is ``lost``, its probability capped below the threshold.
+        frames without an update) and ``present``.  The status follows the
+        calibration's :class:`~vidtrack.filters.calibration.LostRule` (the
+        presence below its threshold for some frames in a row); no
+        measurement at all (``None``) is ``lost`` at once.
         """
         prior_box = self._box()
         box = None if measurement is None else measurement.box
@@ -302,9 +306,8 @@ class MILKalmanFilter:
         confidence = float(np.clip(quality, 0.0, 1.0))
         if self.calibration_ is not None:
             confidence = self.calibration_.probability(scalars)
-            if measurement is None:   # nothing measured at all (the search left the frame): lost
-                confidence = min(confidence, 0.99 * self.calibration_.lost_below)
-            status = LOST if confidence < self.calibration_.lost_below else TRACKING
+            # nothing measured at all (the search left the frame) is lost at once
+            status = LOST if self.lost_rule_.lost(scalars, unmeasured=measurement is None) else TRACKING
         cov = self.C_ @ self.P_ @ self.C_.T
         self.estimate_ = Estimate(self._box(), cov, confidence, status, scalars)
         return self.estimate_

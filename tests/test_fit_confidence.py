@@ -1,0 +1,50 @@
+"""scripts/fit_confidence.py: mil's lost rule, chosen on frames each fit has not seen."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from conftest import load_script
+
+
+@pytest.fixture(scope="module")
+def fit():
+    return load_script("fit_confidence")
+
+
+def test_runs_restart_with_each_sequence_and_seed(fit):
+    rows = [{"sequence": "A", "seed": 0}] * 3 + [{"sequence": "B", "seed": 0}] * 2 + [{"sequence": "B", "seed": 1}]
+    assert fit.run_starts(rows).tolist() == [True, False, False, True, False, True]
+    p = np.array([0.1, 0.1, 0.1, 0.1, 0.9, 0.1])
+    assert fit.low_runs(p, fit.run_starts(rows), 0.5).tolist() == [1, 2, 3, 1, 0, 1]
+
+
+def test_the_lost_rule_balances_false_lost_and_missed_loss(fit):
+    """A run of low presence where the box has left the target is lost; single dips on the target are not."""
+    # the dips go lower than the loss, so no threshold alone tells them apart
+    p = np.array([0.9] * 40 + [0.1] + [0.9] * 20 + [0.1] + [0.9] * 20 + [0.2] * 10 + [0.9] * 9)
+    ious = np.array([0.7] * 40 + [0.6] + [0.7] * 20 + [0.5] + [0.7] * 20 + [0.0] * 10 + [0.7] * 9)
+    starts = np.zeros(len(p), bool)
+    starts[0] = True
+    t, k, false_lost, missed_loss = fit.choose_lost_rule(p, ious, starts)
+    assert 0.2 < t <= 0.9 and k == 2        # two low frames in a row: the dips are not lost, the loss is
+    assert false_lost == 0.0 and missed_loss == pytest.approx(1 / 92)   # its first frame is missed
+
+
+def test_the_held_out_presence_of_a_sequence_comes_from_the_others(fit):
+    rng = np.random.default_rng(0)
+    rows, X, ious = [], [], []
+    for name in "ABC":
+        x = rng.normal(size=(60, 1))
+        rows += [{"sequence": name}] * 60
+        X.append(x)
+        ious.append(np.where(x[:, 0] > -0.5, 0.7, 0.0))
+    X, ious = np.vstack(X), np.concatenate(ious)
+    p = fit.held_out_presence(X, rows, ious, 1.0)
+    assert p.shape == (180,) and np.all((p > 0) & (p < 1))
+    assert np.mean((p > 0.5) == (ious > 0)) > 0.9
+    changed = ious.copy()
+    changed[:60] = 0.7 - ious[:60]        # relabel A: A's own presence does not move, B's and C's do
+    q = fit.held_out_presence(X, rows, changed, 1.0)
+    assert np.allclose(q[:60], p[:60]) and not np.allclose(q[60:], p[60:])
