@@ -1,7 +1,9 @@
 """Fit the calibrated confidence of ``mil``, ``nh``, ``pf``, ``bayes`` and ``cbt`` on the *tune* split.
 
-Runs each tracker (its calibration switched off, so the cues are those of
-the uncalibrated tracker) over the *tune* sequences of
+Runs each tracker (the score-map trackers and ``cbt`` with their calibration
+switched off, so the cues are those of the uncalibrated tracker; ``mil`` as
+packaged, since neither its cues nor its boxes depend on its calibration,
+which also decides whether it measures the appearance verification) over the *tune* sequences of
 ``../shared/data/sequences`` at the given seeds, records every frame's cues
 (the filter's ``scalars``, see :mod:`vidtrack.filters.calibration`) and
 whether its box overlaps the ground truth by more than 0.5 (annotated frames,
@@ -47,6 +49,7 @@ from __future__ import annotations
 import argparse
 import json
 import sys
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -66,18 +69,19 @@ from vidtrack.sources import ImageFolderSource  # noqa: E402
 TUNE = "David,Sylvester,FaceOcc1,FaceOcc2,Girl,Tiger1,Tiger2,Man,Dancer2,Football1,Human9,Subway,MotorRolling"
 OUT = Path(__file__).resolve().parents[1] / "vidtrack" / "filters" / "calibration"
 
-#: The cues the packaged files use, chosen on tune by leave-one-sequence-out.  mil (fit on 12 sequences,
-#: score the 13th, ROC AUC of the pooled held-out probabilities): quality, PSR and inlier coverage
-#: (0.912 on the packaged tracker's frames; all of :data:`~vidtrack.filters.mil.CUES` 0.901, the quality
-#: alone 0.843; ``--select`` stops at the PSR and the inlier coverage, 0.913).  The score-map
-#: trackers and cbt: forward selection on :func:`held_out_auc`.  nh: the running colour likelihood and the
+#: The cues the packaged files use, chosen on tune by forward selection on :func:`held_out_auc` (fit on 12
+#: sequences, score the 13th, pooled).  mil: the running verification, the inlier coverage, the presence
+#: flag, the colour likelihood and the verification gap (0.945 on the packaged tracker's frames; the
+#: quality, PSR and inlier coverage 0.912; all of :data:`~vidtrack.filters.mil.CUES` 0.927).  The score-map
+#: trackers and cbt, likewise.  nh: the running colour likelihood and the
 #: verification gap (0.938; with the size gap as well 0.928, the uncalibrated confidence 0.764, all of
 #: :data:`~vidtrack.filters.score_trackers.CUES` 0.910); pf: the running colour likelihood, the verification
 #: gap and the particles' spread (0.942; 0.684, all 0.777); bayes: the running verification and colour
 #: likelihood and the spread (0.950; 0.684, all 0.913); cbt: the running colour likelihood, the running
 #: verification and the mode mass (0.923; the uncalibrated confidence 0.654, all of
 #: :data:`~vidtrack.filters.cbt.CUES` 0.866).
-MIL_CUES = tuple(c for c in mil_filter.CUES if c[0] in ("quality", "psr", "inlier_coverage"))
+MIL_CUES = tuple(c for c in mil_filter.CUES
+                 if c[0] in ("verify_mean", "inlier_coverage", "present", "colour", "verify_gap"))
 NH_CUES = tuple(c for c in score_trackers.CUES if c[0] in ("colour_mean", "verify_gap"))
 PF_CUES = tuple(c for c in score_trackers.CUES if c[0] in ("colour_mean", "verify_gap", "spread"))
 BAYES_CUES = tuple(c for c in score_trackers.CUES if c[0] in ("verify_mean", "colour_mean", "spread"))
@@ -85,12 +89,16 @@ CBT_CUES = tuple(c for c in cbt_filter.CUES if c[0] in ("colour_mean", "verify_m
 
 #: tracker -> (its cues, the setting that switches its calibration off, the rule of its lost threshold)
 TRACKERS = {
-    "mil": (MIL_CUES, {"kalman.confidence": None}, "balance"),
+    "mil": (MIL_CUES, {}, "balance"),   # its cues and boxes do not depend on its calibration
     "nh": (NH_CUES, {"confidence": None}, "unmeasured"),
     "pf": (PF_CUES, {"confidence": None}, "unmeasured"),
     "bayes": (BAYES_CUES, {"confidence": None}, "unmeasured"),
     "cbt": (CBT_CUES, {"confidence": None}, "unmeasured"),
 }
+#: The cues of the presence model ``P(IoU > 0)`` that decides ``lost`` (rule ``"balance"``), chosen on tune by
+#: forward selection on the held-out ROC AUC of ``IoU > 0`` (``--select``).  mil: the correlation filter's PSR
+#: and the running colour likelihood (0.980; the confidence's own cues 0.932).
+PRESENCE_CUES = {"mil": tuple(c for c in mil_filter.CUES if c[0] in ("psr", "colour_mean"))}
 #: The runs of low presence ``mil``'s lost rule may require (``lost_after``).
 LOST_AFTER = (1, 2, 3, 4, 5)
 #: The cues ``--select`` chooses from.
@@ -204,7 +212,7 @@ def lost_status(cal: Calibration, rows: list[dict]) -> np.ndarray:
 def fit(name: str, rows: list[dict], ious: np.ndarray, C: float) -> Calibration:
     """Logistic regression of ``IoU > 0.5`` on the standardised, clipped cues of ``name``."""
     cues, _, rule = TRACKERS[name]
-    return fit_cues(cues, rule, rows, ious, C)
+    return fit_cues(cues, rule, rows, ious, C, PRESENCE_CUES.get(name))
 
 
 def cue_matrix(cues, rows: list[dict]) -> np.ndarray:
@@ -214,13 +222,14 @@ def cue_matrix(cues, rows: list[dict]) -> np.ndarray:
     return np.clip(np.where(np.isfinite(X), X, fill), lower, upper)
 
 
-def held_out_auc(cues, rows: list[dict], ious: np.ndarray, C: float = 1.0, X: np.ndarray | None = None) -> float:
+def held_out_auc(cues, rows: list[dict], ious: np.ndarray, C: float = 1.0, X: np.ndarray | None = None,
+                 above: float = 0.5) -> float:
     """Leave-one-sequence-out ROC AUC of the logistic fit on ``cues`` (rows carry their ``sequence``).
 
     Each sequence's frames are scored by the fit on the other sequences: the held-out score is the
     cues, standardised over all rows, projected on the fit's direction (its weights in those units,
     scaled to length 1); these scores are pooled over the sequences and their ROC AUC for ``IoU > 0.5``
-    returned.  The fit's constant and length are left out because with one sequence held out they
+    returned (``IoU > above``: the presence model's question with ``above=0``).  The fit's constant and length are left out because with one sequence held out they
     mostly encode the other sequences' rate of good frames (lower when the held-out sequence is a good
     one): pooled, they would rank each sequence's frames by its own label rate, against them.  With one
     cue the score is the cue itself (signed), so a single cue's figure is its own ROC AUC when the folds
@@ -229,7 +238,7 @@ def held_out_auc(cues, rows: list[dict], ious: np.ndarray, C: float = 1.0, X: np
     from sklearn.linear_model import LogisticRegression
 
     X = cue_matrix(cues, rows) if X is None else X
-    y = ious > 0.5
+    y = ious > above
     sequences = np.array([r.get("sequence", "") for r in rows])
     z = np.zeros(len(rows))
     g_mean, g_scale = X.mean(axis=0), X.std(axis=0)
@@ -246,7 +255,8 @@ def held_out_auc(cues, rows: list[dict], ious: np.ndarray, C: float = 1.0, X: np
     return conf_metrics.roc_auc(z, y)
 
 
-def select_cues(table, rows: list[dict], ious: np.ndarray, C: float = 1.0, min_gain: float = 0.003):
+def select_cues(table, rows: list[dict], ious: np.ndarray, C: float = 1.0, min_gain: float = 0.003,
+                above: float = 0.5):
     """Forward selection on :func:`held_out_auc`: from no cue, add the cue of ``table`` that raises it most.
 
     Stops when no cue raises it by ``min_gain``; returns the chosen cues (rows of ``table``) and a line
@@ -257,7 +267,8 @@ def select_cues(table, rows: list[dict], ious: np.ndarray, C: float = 1.0, min_g
     chosen, best, lines = [], 0.5, []
     while len(chosen) < len(table):
         scored = [(held_out_auc(tuple(chosen) + (c,), rows, ious, C,
-                                X[:, [table.index(k) for k in (*chosen, c)]]), c) for c in table if c not in chosen]
+                                X[:, [table.index(k) for k in (*chosen, c)]], above), c)
+                  for c in table if c not in chosen]
         auc, cue = max(scored, key=lambda t: t[0])
         if not auc >= best + min_gain:
             break
@@ -267,32 +278,36 @@ def select_cues(table, rows: list[dict], ious: np.ndarray, C: float = 1.0, min_g
     return tuple(chosen), lines
 
 
-def fit_cues(cues, rule: str, rows: list[dict], ious: np.ndarray, C: float) -> Calibration:
-    """Logistic regression of ``IoU > 0.5`` on the standardised, clipped ``cues``; ``rule`` sets the threshold."""
+def logistic_fit(cues, rows: list[dict], labels: np.ndarray, C: float, lost_below: float = 0.5) -> Calibration:
+    """Logistic regression of the bool ``labels`` on the standardised, clipped ``cues`` of ``rows``."""
     from sklearn.linear_model import LogisticRegression
 
     names = tuple(c[0] for c in cues)
     fill, lower, upper = (np.array([c[i] for c in cues], float) for i in (1, 2, 3))
-    probe = Calibration(cues=names, mean=np.zeros(len(names)), scale=np.ones(len(names)),
-                        coef=np.zeros(len(names)), intercept=0.0, fill=fill, lower=lower, upper=upper,
-                        lost_below=0.5)
-    X = np.array([probe.vector(r) for r in rows])
-    y = ious > 0.5
+    X = cue_matrix(cues, rows)
     mean, scale = X.mean(axis=0), X.std(axis=0)
     scale = np.where(scale > 1e-9, scale, 1.0)
-    model = LogisticRegression(C=C, max_iter=1000).fit((X - mean) / scale, y)
-    coef, intercept = model.coef_[0], float(model.intercept_[0])
-    if rule == "balance":   # the lost status from the presence P(IoU > 0), its rule chosen on held-out frames
-        presence = LogisticRegression(C=C, max_iter=1000).fit((X - mean) / scale, ious > 0)
+    model = LogisticRegression(C=C, max_iter=1000).fit((X - mean) / scale, labels)
+    return Calibration(cues=names, mean=mean, scale=scale, coef=model.coef_[0], intercept=float(model.intercept_[0]),
+                       fill=fill, lower=lower, upper=upper, lost_below=lost_below)
+
+
+def fit_cues(cues, rule: str, rows: list[dict], ious: np.ndarray, C: float, presence_cues=None) -> Calibration:
+    """Logistic regression of ``IoU > 0.5`` on the standardised, clipped ``cues``; ``rule`` sets the threshold.
+
+    ``"balance"``: the status from a presence model, ``IoU > 0`` on ``presence_cues``, lost below a
+    threshold for some frames in a row (:func:`choose_lost_rule` on held-out frames).
+    """
+    cal = logistic_fit(cues, rows, ious > 0.5, C)
+    if rule == "balance":
+        X = cue_matrix(presence_cues, rows)
         threshold, lost_after, _, _ = choose_lost_rule(held_out_presence(X, rows, ious, C), ious, run_starts(rows))
-        return Calibration(cues=names, mean=mean, scale=scale, coef=coef, intercept=intercept, fill=fill,
-                           lower=lower, upper=upper, lost_below=threshold, presence_coef=presence.coef_[0],
-                           presence_intercept=float(presence.intercept_[0]), lost_after=lost_after)
+        return replace(cal, lost_below=threshold, lost_after=lost_after,
+                       presence=logistic_fit(presence_cues, rows, ious > 0, C, threshold))
     # the probability of a frame whose every cue takes its missing value, rounded up
-    unmeasured = float(logistic_probability(np.clip(fill, lower, upper), mean, scale, coef, intercept))
-    threshold = float(np.ceil(unmeasured * 1000.0 + 1e-9) / 1000.0)
-    return Calibration(cues=names, mean=mean, scale=scale, coef=coef, intercept=intercept, fill=fill,
-                       lower=lower, upper=upper, lost_below=threshold)
+    unmeasured = float(logistic_probability(np.clip(cal.fill, cal.lower, cal.upper), cal.mean, cal.scale, cal.coef,
+                                            cal.intercept))
+    return replace(cal, lost_below=float(np.ceil(unmeasured * 1000.0 + 1e-9) / 1000.0))
 
 
 def main(argv=None) -> int:
@@ -351,9 +366,9 @@ def fit_pass(name, sequences, seeds, args, *, calibrated: bool):
     m = conf_metrics.confidence_metrics(ious, p, status)
     weights = ", ".join(f"{c} {w:+.2f}" for c, w in zip(cal.cues, cal.coef))
     lost = f"lost below {cal.lost_below:.3f}"
-    if cal.presence_coef is not None:
-        presence = ", ".join(f"{c} {w:+.2f}" for c, w in zip(cal.cues, cal.presence_coef))
-        lost = (f"presence: {presence}; intercept {cal.presence_intercept:+.2f}; lost below {cal.lost_below:.3f} "
+    if cal.presence is not None:
+        presence = ", ".join(f"{c} {w:+.2f}" for c, w in zip(cal.presence.cues, cal.presence.coef))
+        lost = (f"presence: {presence}; intercept {cal.presence.intercept:+.2f}; lost below {cal.lost_below:.3f} "
                 f"for {cal.lost_after} frame(s)")
     print(f"{name}{' (pass on the calibrated tracker)' if calibrated else ''}: {len(rows)} frames; {weights}; "
           f"intercept {cal.intercept:+.2f}; {lost}")
@@ -364,8 +379,13 @@ def fit_pass(name, sequences, seeds, args, *, calibrated: bool):
     if args.select and name in SELECT_FROM:
         chosen, lines = select_cues(SELECT_FROM[name], rows, ious, args.C)
         print("\n".join(lines) + f"\n  selected: {', '.join(c[0] for c in chosen)}", flush=True)
-    if cal.presence_coef is not None:   # the lost rule on frames the fit has not seen
-        held = held_out_presence(cue_matrix(TRACKERS[name][0], rows), rows, ious, args.C)
+        if name in PRESENCE_CUES:
+            chosen, lines = select_cues(SELECT_FROM[name], rows, ious, args.C, above=0.0)
+            auc = held_out_auc(TRACKERS[name][0], rows, ious, args.C, above=0.0)
+            print("  presence, IoU > 0:\n" + "\n".join(lines) + f"\n  selected: {', '.join(c[0] for c in chosen)} "
+                  f"(the confidence's cues: {auc:.3f})", flush=True)
+    if cal.presence is not None:   # the lost rule on frames the fit has not seen
+        held = held_out_presence(cue_matrix(PRESENCE_CUES[name], rows), rows, ious, args.C)
         starts = run_starts(rows)
         status = np.where(low_runs(held, starts, cal.lost_below) >= cal.lost_after, conf_metrics.LOST,
                           conf_metrics.TRACKING)

@@ -34,20 +34,27 @@ def test_probability_is_the_logistic_of_the_standardised_clipped_cues():
     assert Calibration.from_dict(cal.to_dict()).probability({"a": 0.5}) == pytest.approx(cal.probability({"a": 0.5}))
 
 
-def test_the_presence_model_reads_the_same_cues_and_round_trips():
-    cal = _calibration(presence_coef=np.array([0.5, 2.0]), presence_intercept=3.0, lost_after=3)
-    z = 3.0 + 0.5 * (3.0 - 1.0) / 2.0 + 2.0 * 2.0      # the same standardised, clipped cues, other weights
-    assert cal.presence({"a": 3.0, "b": 5.0}) == pytest.approx(1.0 / (1.0 + np.exp(-z)))
+def test_the_presence_model_reads_its_own_cues_and_round_trips():
+    presence = Calibration(cues=("c",), mean=np.array([2.0]), scale=np.array([0.5]), coef=np.array([1.0]),
+                           intercept=3.0, fill=np.array([0.0]), lower=np.array([0.0]), upper=np.array([5.0]),
+                           lost_below=0.4)
+    cal = _calibration(presence=presence, lost_after=3)
+    z = 3.0 + 1.0 * (4.0 - 2.0) / 0.5
+    assert cal.presence_probability({"a": 3.0, "c": 4.0}) == pytest.approx(1.0 / (1.0 + np.exp(-z)))
+    assert cal.presence_probability({"a": 3.0, "b": 1.0}) == pytest.approx(1.0 / (1.0 + np.exp(-(3.0 - 4.0))))
     again = Calibration.from_dict(cal.to_dict())
-    assert again.lost_after == 3 and again.presence({"a": 0.5}) == pytest.approx(cal.presence({"a": 0.5}))
+    assert "lost_below" not in cal.to_dict()["presence"] and again.presence.lost_below == cal.lost_below
+    assert again.lost_after == 3
+    assert again.presence_probability({"c": 1.5}) == pytest.approx(cal.presence_probability({"c": 1.5}))
     plain = _calibration()   # without a presence model the status reads P(IoU > 0.5) itself
-    assert plain.presence({"a": 0.5}) == plain.probability({"a": 0.5}) and "presence" not in plain.to_dict()
+    assert plain.presence_probability({"a": 0.5}) == plain.probability({"a": 0.5})
+    assert "presence" not in plain.to_dict()
 
 
 def test_lost_needs_lost_after_low_frames_in_a_row_or_no_measurement():
-    # presence = logistic(2 (a - 1) / 2): a = 1 gives 0.5, below lost_below 0.6; a = 3 gives 0.88
-    rule = LostRule(_calibration(presence_coef=np.array([2.0, 0.0]), presence_intercept=0.0, lost_below=0.6,
-                                 lost_after=3))
+    # P(IoU > 0.5) = logistic(0.25 + 1.5 (a - 1) / 2 - 0.5 b) with b's fill 3 clipped to 2:
+    # a = 1 gives 0.32, below lost_below 0.6; a = 3 gives 0.68
+    rule = LostRule(_calibration(lost_below=0.6, lost_after=3))
     low, high = {"a": 1.0}, {"a": 3.0}
     assert [rule.lost(c) for c in (low, low, high, low, low, low, low)] == [False, False, False, False, False,
                                                                            True, True]
@@ -67,7 +74,7 @@ def test_bad_calibration_files_are_usage_errors():
     with pytest.raises(UsageError, match="lost_after"):
         Calibration.from_dict({**_calibration().to_dict(), "lost_after": 0})
     with pytest.raises(UsageError, match="missing"):
-        Calibration.from_dict({**_calibration().to_dict(), "presence": {"coef": [1.0, 1.0]}})
+        Calibration.from_dict({**_calibration().to_dict(), "presence": {"cues": ["a"], "coef": [1.0]}})
 
 
 MIL_GOOD = {"measured": 1.0, "quality": 0.9, "psr": 20.0, "svm_margin": 1.5, "inlier_coverage": 0.6,
@@ -91,11 +98,11 @@ def test_packaged_calibrations_match_their_filters_cues(name, cues, good):
     assert cal.probability(COASTING) < cal.lost_below
 
 
-def _measurement(box: Box, quality: float, psr: float) -> Superpixels:
+def _measurement(box: Box, quality: float, psr: float, coverage: float = 0.6) -> Superpixels:
     scores = np.array([1.0, 0.5, -1.0])
     return Superpixels(labels=np.zeros((2, 2), np.int32), features=np.zeros((3, 1)), scores=scores,
                        inliers=np.array([True, True, False]), box=box, quality=quality,
-                       stages={"psr": psr, "inlier_coverage": 0.6})
+                       stages={"psr": psr, "inlier_coverage": coverage})
 
 
 def test_mil_filter_reports_the_calibrated_probability_and_lost_by_the_presence_rule():
@@ -107,21 +114,21 @@ def test_mil_filter_reports_the_calibrated_probability_and_lost_by_the_presence_
     good = kf.update(_measurement(box, 0.9, 20.0))
     assert good.status == TRACKING and good.scalars["measured"] == 1.0
     assert good.confidence == pytest.approx(cal.probability(good.scalars))
-    assert cal.presence(good.scalars) >= cal.lost_below and good.scalars["svm_margin"] == pytest.approx(0.75)
+    assert cal.presence_probability(good.scalars) >= cal.lost_below and good.scalars["svm_margin"] == pytest.approx(0.75)
     for _ in range(5):   # nothing measured: lost at once, the probability low
         kf.predict()
         coast = kf.update(None)
         assert coast.status == LOST
     assert coast.scalars["measured"] == 0.0 and coast.scalars["coast"] == pytest.approx(np.log(6.0))
-    assert coast.confidence < 0.1 < 0.5 < good.confidence and cal.presence(coast.scalars) < cal.lost_below
-    # a weak peak (PSR 4): tracking until the presence has stayed low for lost_after frames
+    assert coast.confidence < 0.5 < good.confidence and cal.presence_probability(coast.scalars) < cal.lost_below
+    # a weak measurement (inliers on 5 % of the box): tracking until the presence has stayed low for lost_after
     kf.predict()
     kf.update(_measurement(box, 0.9, 20.0))
     weak = []
     for _ in range(cal.lost_after + 1):
         kf.predict()
-        weak.append(kf.update(_measurement(box, 0.2, 4.0)))
-    assert all(cal.presence(w.scalars) < cal.lost_below for w in weak)
+        weak.append(kf.update(_measurement(box, 0.2, 4.0, coverage=0.05)))
+    assert all(cal.presence_probability(w.scalars) < cal.lost_below for w in weak)
     assert [w.status for w in weak] == [TRACKING] * (cal.lost_after - 1) + [LOST, LOST]
     raw = MILKalmanFilter(KalmanConfig(confidence=None))   # uncalibrated: the quality, lost when not measured
     raw.initialize(box)

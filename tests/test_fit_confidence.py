@@ -48,3 +48,22 @@ def test_the_held_out_presence_of_a_sequence_comes_from_the_others(fit):
     changed[:60] = 0.7 - ious[:60]        # relabel A: A's own presence does not move, B's and C's do
     q = fit.held_out_presence(X, rows, changed, 1.0)
     assert np.allclose(q[:60], p[:60]) and not np.allclose(q[60:], p[60:])
+
+
+def test_a_balanced_fit_holds_a_presence_model_on_its_own_cues(fit):
+    """The confidence is fitted to IoU > 0.5 on its cues, the presence to IoU > 0 on others, each standardised."""
+    rng = np.random.default_rng(1)
+    rows, ious = [], []
+    for name in "ABCD":
+        for _ in range(80):
+            seen, good = rng.uniform(0, 30), rng.uniform(0, 1)
+            rows.append({"sequence": name, "psr": seen, "quality": good})
+            ious.append(0.0 if seen < 8 else (0.7 if good > 0.5 else 0.3))
+    ious = np.array(ious)
+    cues = (("quality", 0.0, 0.0, 1.0),)
+    presence_cues = (("psr", 0.0, 0.0, 30.0),)
+    cal = fit.fit_cues(cues, "balance", rows, ious, 1.0, presence_cues)
+    assert cal.cues == ("quality",) and cal.presence.cues == ("psr",)
+    assert cal.presence.lost_below == cal.lost_below and cal.lost_after in fit.LOST_AFTER
+    assert cal.presence_probability({"psr": 2.0}) < cal.lost_below < cal.presence_probability({"psr": 20.0})
+    assert cal.probability({"quality": 0.9}) > 0.5 > cal.probability({"quality": 0.1})

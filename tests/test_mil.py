@@ -14,6 +14,7 @@ from vidtrack.filters.mil import KalmanConfig, MILKalmanFilter, box_from_state, 
 from vidtrack.measure import superpixels as sp
 from vidtrack.measure.mil import inlier_measurement, locate_inliers
 from vidtrack.measure.threads import SecondThread
+from vidtrack.measure.verification import VerifiedMeasurer
 from vidtrack.recipes import build_tracker, recipe_config
 from vidtrack.recipes.mil import build_mil
 from vidtrack.types import Box, Frame, Superpixels
@@ -129,15 +130,15 @@ def _behind_the_post(speed, seed=0, settings=None):
 
 def test_mil_is_lost_while_the_target_is_wholly_behind_an_occluder():
     """A frame in which the square is entirely hidden is only predicted, and its calibrated confidence says the
-    box is unlikely to be on the target; with the uncalibrated rule (lost = not measured, a half-hidden square
-    that the correlation filter still sees is not) it is lost."""
+    box is unlikely to be on the target (below one half); with the uncalibrated rule (lost = not measured, a
+    half-hidden square that the correlation filter still sees is not) it is lost."""
     hidden_frames = 0
     for speed in (1.8, 2.0, 2.2):
         states, hidden, _ = _behind_the_post(speed)
         for state, wholly in zip(states, hidden):
             if wholly:
                 hidden_frames += 1
-                assert state.scalars["measured"] == 0.0 and state.confidence < 0.25
+                assert state.scalars["measured"] == 0.0 and state.confidence < 0.5
     assert hidden_frames >= 1
     states, hidden, _ = _behind_the_post(2.0, settings={"kalman.confidence": None})
     assert all(state.status == "lost" for state, wholly in zip(states, hidden) if wholly) and any(hidden)
@@ -331,7 +332,7 @@ def test_the_fusion_settings_of_mil_paper_turn_the_correlation_filter_off():
     settings = {"fusion.refine": "false", "fusion.size_from": "inliers"}
     tracker = build_tracker("mil", seed=0, settings=settings)
     tracker.initialize(_scene(0, 50, 60), Box(38, 48, 24, 24))
-    assert tracker.measurer.cf_ is None
+    assert tracker.measurer.inner.cf_ is None      # inside the appearance verification of the confidence
     assert recipe_config("mil-paper").fusion.uses_correlation is False
     with pytest.raises(UsageError, match="fusion.redetect"):
         build_tracker("mil", settings={"fusion.redetect_after": 3})
@@ -353,3 +354,21 @@ def test_the_command_line_runs_mil_paper(tmp_path):
     expected = [state.box.as_array() for state in vidtrack.track(images, (38, 48, 24, 24), "mil-paper", seed=0)]
     assert written.shape == (12, 4)
     assert np.allclose(written, expected, atol=0.01)
+
+
+def test_the_confidence_reads_the_first_frames_appearance_without_moving_a_box():
+    """With its calibration ``mil`` measures the appearance verification and reads its cues at the box; the
+    boxes are those of the tracker without it, and ``mil-paper`` (no calibration) does not measure it."""
+    runs = {}
+    for confidence in ("mil", None):
+        tracker = build_tracker("mil", seed=0, settings={"kalman.confidence": confidence})
+        state = tracker.initialize(_scene(0, 50, 60), Box(38, 48, 24, 24))
+        states = [tracker.step(_scene(k, 50 + 2 * k, 60 + k)) for k in range(1, 15)]
+        runs[confidence] = (tracker, states)
+    tracker, states = runs["mil"]
+    assert isinstance(tracker.measurer, VerifiedMeasurer) and not isinstance(runs[None][0].measurer, VerifiedMeasurer)
+    assert {"verify", "verify_gap", "colour", "verify_mean", "colour_mean"} <= set(states[-1].scalars)
+    assert states[-1].scalars["verify_mean"] > 0.5          # the box still looks like the first frame's target
+    assert [s.box.as_array().tolist() for s in states] == [s.box.as_array().tolist() for s in runs[None][1]]
+    assert not isinstance(build_tracker("mil-paper", seed=0).measurer, VerifiedMeasurer)
+    assert state.status == "tracking"

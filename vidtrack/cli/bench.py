@@ -71,8 +71,9 @@ def main(argv: Sequence[str]) -> int:
     check_box_in_frame(first, box)
     tracker.initialize(first, box)
     measurer, filt = tracker.measurer, tracker.filter
-    stage_time = getattr(measurer, "timings_", None)
-    background = getattr(measurer, "cf_timings_", None)
+    timed = getattr(measurer, "inner", measurer)   # a wrapped measurer's stages are its inner one's
+    stage_time = getattr(timed, "timings_", None)
+    background = getattr(timed, "cf_timings_", None)
     for timings in (stage_time, background):
         if timings is not None:
             timings.clear()  # time the steady state, not the bootstrap

@@ -17,13 +17,13 @@ with ``m``, ``s`` the cues' mean and spread and ``w``, ``b`` fitted on the
 whose probability is below the file's ``lost_below`` is reported ``lost``;
 the script chooses that threshold on *tune* too (the file says how).
 
-A file may also hold a ``presence`` model: the same logistic form on the same
-standardised cues, fitted to ``IoU > 0`` instead, the probability that the
-box still overlaps the target at all.  That is the question ``lost``
-answers (a box half off a turning target is poor, not lost), so with it the
-status is read from the presence: ``lost`` once it has stayed below
-``lost_below`` for ``lost_after`` frames in a row (:class:`LostRule`), while
-the reported confidence stays ``P(IoU > 0.5)``.
+A file may also hold a ``presence`` model: the same logistic form on cues of
+its own, fitted to ``IoU > 0`` instead, the probability that the box still
+overlaps the target at all.  That is the question ``lost`` answers (a box
+half off a turning target is poor, not lost), so with it the status is read
+from the presence: ``lost`` once it has stayed below ``lost_below`` for
+``lost_after`` frames in a row (:class:`LostRule`), while the reported
+confidence stays ``P(IoU > 0.5)``.
 """
 
 from __future__ import annotations
@@ -53,9 +53,9 @@ class Calibration:
     ``cues`` names the inputs in order; ``fill`` is the value a missing cue
     takes; ``lower``/``upper`` clip each cue (a single extreme frame must not
     dominate); ``lost_below`` is the probability under which a frame is
-    ``lost``: of the presence model ``P(IoU > 0)`` (``presence_coef``,
-    ``presence_intercept``, on the same standardised cues) for ``lost_after``
-    frames in a row when the file has one, else of ``P(IoU > 0.5)`` itself.
+    ``lost``: of the ``presence`` model ``P(IoU > 0)`` (a calibration of
+    its own, whose ``lost_below`` is this one) for ``lost_after`` frames in
+    a row when the file has one, else of ``P(IoU > 0.5)`` itself.
     """
 
     cues: tuple[str, ...]
@@ -67,8 +67,7 @@ class Calibration:
     lower: np.ndarray
     upper: np.ndarray
     lost_below: float
-    presence_coef: np.ndarray | None = None
-    presence_intercept: float = 0.0
+    presence: Calibration | None = None
     lost_after: int = 1
 
     def vector(self, cues: Mapping[str, float]) -> np.ndarray:
@@ -81,12 +80,9 @@ class Calibration:
         """``P(IoU > 0.5)`` of one frame's ``cues``."""
         return float(logistic_probability(self.vector(cues), self.mean, self.scale, self.coef, self.intercept))
 
-    def presence(self, cues: Mapping[str, float]) -> float:
+    def presence_probability(self, cues: Mapping[str, float]) -> float:
         """``P(IoU > 0)`` of one frame's ``cues``; ``P(IoU > 0.5)`` when the file has no presence model."""
-        if self.presence_coef is None:
-            return self.probability(cues)
-        return float(logistic_probability(self.vector(cues), self.mean, self.scale, self.presence_coef,
-                                          self.presence_intercept))
+        return (self.presence or self).probability(cues)
 
     @classmethod
     def from_dict(cls, data: Mapping) -> Calibration:
@@ -94,13 +90,13 @@ class Calibration:
         try:
             cues = tuple(data["cues"])
             arrays = {k: np.asarray(data[k], float) for k in ("mean", "scale", "coef", "fill", "lower", "upper")}
+            lost_below = float(data["lost_below"])
             presence = data.get("presence")
             if presence is not None:
-                arrays["presence_coef"] = np.asarray(presence["coef"], float)
-            out = cls(cues=cues, intercept=float(data["intercept"]), lost_below=float(data["lost_below"]),
-                      presence_intercept=0.0 if presence is None else float(presence["intercept"]),
+                presence = cls.from_dict({**presence, "lost_below": lost_below})
+            out = cls(cues=cues, intercept=float(data["intercept"]), lost_below=lost_below, presence=presence,
                       lost_after=int(data.get("lost_after", 1)), **arrays)
-        except (KeyError, TypeError, ValueError) as exc:
+        except (KeyError, TypeError, ValueError, AttributeError) as exc:
             raise UsageError(f"calibration file: missing or bad field ({exc})") from None
         if any(a.shape != (len(cues),) for a in arrays.values()):
             raise UsageError("calibration file: every array needs one value per cue")
@@ -115,9 +111,8 @@ class Calibration:
             out[key] = [round(float(v), 6) for v in getattr(self, key)]
         out["intercept"] = round(float(self.intercept), 6)
         out["lost_below"] = float(self.lost_below)
-        if self.presence_coef is not None:
-            out["presence"] = {"coef": [round(float(v), 6) for v in self.presence_coef],
-                               "intercept": round(float(self.presence_intercept), 6)}
+        if self.presence is not None:   # its threshold is this one's
+            out["presence"] = {k: v for k, v in self.presence.to_dict().items() if k != "lost_below"}
         if self.lost_after != 1:
             out["lost_after"] = int(self.lost_after)
         return out
@@ -126,7 +121,7 @@ class Calibration:
 class LostRule:
     """The ``lost`` status of a calibrated tracker, frame by frame.
 
-    ``lost`` when the presence (:meth:`Calibration.presence`) has been below
+    ``lost`` when the presence (:meth:`Calibration.presence_probability`) has been below
     ``lost_below`` for ``lost_after`` frames in a row, or when nothing was
     measured at all (``unmeasured``); a single doubtful frame between good
     ones is not a loss.
@@ -142,7 +137,7 @@ class LostRule:
 
     def lost(self, cues: Mapping[str, float], *, unmeasured: bool = False) -> bool:
         """Whether this frame (its ``cues``) is ``lost``; call once per frame, in order."""
-        low = self.calibration.presence(cues) < self.calibration.lost_below
+        low = self.calibration.presence_probability(cues) < self.calibration.lost_below
         self.low_run = self.low_run + 1 if low else 0
         return unmeasured or self.low_run >= self.calibration.lost_after
 

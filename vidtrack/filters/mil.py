@@ -26,6 +26,7 @@ import numpy as np
 from ..config import option
 from ..types import LOST, TRACKING, Box, Estimate, Frame, Measurement
 from .calibration import LostRule, load_calibration
+from .confidence_cues import RUNNING_CUES, VERIFICATION_CUES, RunningCues, verification_cues
 from .kalman import kf_predict, kf_update, motion_model
 
 # ------------------------------------------------------------------ pure maths
@@ -66,6 +67,8 @@ CUES = (
     ("coast", 0.0, 0.0, 6.0),
     ("present", 0.0, 0.0, 1.0),
     ("cue_agreement", 1.0, 0.0, 2.0),
+    *VERIFICATION_CUES,
+    *RUNNING_CUES,
 )
 
 #: Occlusion reasoning (:meth:`MILKalmanFilter._occlusion`): a frame is wholly visible when its inlier coverage
@@ -144,6 +147,7 @@ class MILKalmanFilter:
         self.calibration_ = None if c.confidence is None else load_calibration(c.confidence)
         self.lost_rule_ = None if self.calibration_ is None else LostRule(self.calibration_)
         self.unmeasured_run_ = 0
+        self.running_ = RunningCues()
         self.coverage_level_: float | None = None
         self.occluded_run_ = 0
         self.visible_: tuple[np.ndarray, np.ndarray] | None = None
@@ -255,7 +259,11 @@ class MILKalmanFilter:
         centre, in box sizes), ``motion`` (the
         innovation's Mahalanobis length), ``scale_change`` (``|log|`` of the
         measured over the predicted area), ``coast`` (``log(1 + n)``, ``n``
-        frames without an update) and ``present``.  The status follows the
+        frames without an update), ``present`` and, when the measurer adds
+        the first frame's appearance verification map, its cues at the
+        updated box and their running averages
+        (:mod:`vidtrack.filters.confidence_cues`: ``verify``, ``verify_gap``,
+        ``colour``, ``verify_mean``, ``colour_mean``).  The status follows the
         calibration's :class:`~vidtrack.filters.calibration.LostRule` (the
         presence below its threshold for some frames in a row); no
         measurement at all (``None``) is ``lost`` at once.
@@ -303,6 +311,9 @@ class MILKalmanFilter:
             quality = min(quality, self.config.lost_below * 0.99)
             if present:   # predicted only, but the target is there: not lost
                 status = TRACKING
+        verification = verification_cues(stages, self._box().center)   # empty without the verification map
+        scalars.update(verification)
+        scalars.update(self.running_.update(verification))
         confidence = float(np.clip(quality, 0.0, 1.0))
         if self.calibration_ is not None:
             confidence = self.calibration_.probability(scalars)

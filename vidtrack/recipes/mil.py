@@ -44,6 +44,7 @@ from ..config import option
 from ..filters.mil import KalmanConfig, MILKalmanFilter
 from ..measure.mil import GraphCutConfig
 from ..measure.mil_fusion import FusionConfig, MILMeasurer, MILMeasurerConfig
+from ..measure.verification import VerifiedMeasurer
 from ..tracker import Recipe, Tracker
 
 
@@ -55,8 +56,16 @@ class MILConfig(MILMeasurerConfig):
 
 
 def build_mil(config: MILConfig, seed=None, *, threads: bool = True) -> Tracker:
-    """The MIL tracker of ``config``; ``threads`` runs the correlation filter on a second thread (same boxes)."""
-    return Tracker(MILMeasurer(config, rng=seed, threads=threads), MILKalmanFilter(config.kalman))
+    """The MIL tracker of ``config``; ``threads`` runs the correlation filter on a second thread (same boxes).
+
+    With a calibrated confidence the measurer is wrapped in the first frame's appearance verification
+    (:class:`~vidtrack.measure.verification.VerifiedMeasurer`, its map at the measured size only), whose
+    cues the calibration reads; the measurements, and so the boxes, are the same.
+    """
+    measurer = MILMeasurer(config, rng=seed, threads=threads)
+    if config.kalman.confidence is not None:
+        measurer = VerifiedMeasurer(measurer, size_factors=())
+    return Tracker(measurer, MILKalmanFilter(config.kalman))
 
 
 MIL = MILConfig()
