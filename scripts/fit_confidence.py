@@ -350,6 +350,10 @@ def fit_pass(name, sequences, seeds, args, *, calibrated: bool):
     if cache is not None and cache.is_file():
         saved = json.loads(cache.read_text(encoding="utf-8"))
         rows, ious = saved["rows"], np.array(saved["ious"])
+        wanted = {c[0] for c in TRACKERS[name][0] + PRESENCE_CUES.get(name, ())}
+        missing = sorted(c for c in wanted if not any(c in r for r in rows))
+        if missing:   # frames of an older tracker: they would be fitted on the fill values
+            raise SystemExit(f"fit_confidence: {cache} has no frame with {', '.join(missing)}; delete it to collect again")
     else:
         rows, ious = collect(name, sequences, seeds, calibrated)
         if cache is not None:

@@ -92,10 +92,11 @@ COASTING = {"measured": 0.0, "quality": 0.0, "psr": 2.0, "coast": 3.0}
 def test_packaged_calibrations_match_their_filters_cues(name, cues, good):
     cal = load_calibration(name)
     assert set(cal.cues) <= {c[0] for c in cues}
+    assert cal.presence is None or set(cal.presence.cues) <= {c[0] for c in cues}
     assert 0.0 < cal.lost_below < 1.0
-    # a typical well-measured frame is likely right and tracking; a long coast without a peak is lost
-    assert cal.probability(good) > 0.5 and cal.probability(good) >= cal.lost_below
-    assert cal.probability(COASTING) < cal.lost_below
+    # a typical well-measured frame is likely right and not lost; a long coast without a peak is lost
+    assert cal.probability(good) > 0.5 and cal.presence_probability(good) >= cal.lost_below
+    assert cal.presence_probability(COASTING) < cal.lost_below
 
 
 def _measurement(box: Box, quality: float, psr: float, coverage: float = 0.6) -> Superpixels:

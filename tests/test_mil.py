@@ -362,7 +362,7 @@ def test_the_confidence_reads_the_first_frames_appearance_without_moving_a_box()
     runs = {}
     for confidence in ("mil", None):
         tracker = build_tracker("mil", seed=0, settings={"kalman.confidence": confidence})
-        state = tracker.initialize(_scene(0, 50, 60), Box(38, 48, 24, 24))
+        tracker.initialize(_scene(0, 50, 60), Box(38, 48, 24, 24))
         states = [tracker.step(_scene(k, 50 + 2 * k, 60 + k)) for k in range(1, 15)]
         runs[confidence] = (tracker, states)
     tracker, states = runs["mil"]
@@ -371,4 +371,4 @@ def test_the_confidence_reads_the_first_frames_appearance_without_moving_a_box()
     assert states[-1].scalars["verify_mean"] > 0.5          # the box still looks like the first frame's target
     assert [s.box.as_array().tolist() for s in states] == [s.box.as_array().tolist() for s in runs[None][1]]
     assert not isinstance(build_tracker("mil-paper", seed=0).measurer, VerifiedMeasurer)
-    assert state.status == "tracking"
+    assert all(s.status == "tracking" and s.confidence > 0.5 for s in states)   # an easy clip: never in doubt

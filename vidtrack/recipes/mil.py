@@ -59,7 +59,7 @@ def build_mil(config: MILConfig, seed=None, *, threads: bool = True) -> Tracker:
     """The MIL tracker of ``config``; ``threads`` runs the correlation filter on a second thread (same boxes).
 
     With a calibrated confidence the measurer is wrapped in the first frame's appearance verification
-    (:class:`~vidtrack.measure.verification.VerifiedMeasurer`, its map at the measured size only), whose
+    (:class:`~vidtrack.measure.verification.VerifiedMeasurer`, its map at the predicted box size only), whose
     cues the calibration reads; the measurements, and so the boxes, are the same.
     """
     measurer = MILMeasurer(config, rng=seed, threads=threads)
