@@ -71,8 +71,8 @@ OUT = Path(__file__).resolve().parents[1] / "vidtrack" / "filters" / "calibratio
 
 #: The cues the packaged files use, chosen on tune by forward selection on :func:`held_out_auc` (fit on 12
 #: sequences, score the 13th, pooled).  mil: the running verification, the inlier coverage, the presence
-#: flag, the colour likelihood and the verification gap (0.945 on the packaged tracker's frames; the
-#: quality, PSR and inlier coverage 0.912; all of :data:`~vidtrack.filters.mil.CUES` 0.927).  The score-map
+#: flag, the colour likelihood and the verification gap (0.944 on the packaged tracker's frames; the
+#: quality, PSR and inlier coverage 0.912; all of :data:`~vidtrack.filters.mil.CUES` 0.926).  The score-map
 #: trackers and cbt, likewise.  nh: the running colour likelihood and the
 #: verification gap (0.938; with the size gap as well 0.928, the uncalibrated confidence 0.764, all of
 #: :data:`~vidtrack.filters.score_trackers.CUES` 0.910); pf: the running colour likelihood, the verification
@@ -97,7 +97,7 @@ TRACKERS = {
 }
 #: The cues of the presence model ``P(IoU > 0)`` that decides ``lost`` (rule ``"balance"``), chosen on tune by
 #: forward selection on the held-out ROC AUC of ``IoU > 0`` (``--select``).  mil: the correlation filter's PSR
-#: and the running colour likelihood (0.980; the confidence's own cues 0.932).
+#: and the running colour likelihood (0.980; the confidence's own cues 0.933).
 PRESENCE_CUES = {"mil": tuple(c for c in mil_filter.CUES if c[0] in ("psr", "colour_mean"))}
 #: The runs of low presence ``mil``'s lost rule may require (``lost_after``).
 LOST_AFTER = (1, 2, 3, 4, 5)

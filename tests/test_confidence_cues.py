@@ -15,7 +15,7 @@ from vidtrack.filters.calibration import Calibration, load_calibration
 from vidtrack.filters.confidence_cues import map_value, verification_cues
 from vidtrack.measure.verification import AppearanceVerifier, VerifiedMeasurer
 from vidtrack.recipes import build_tracker
-from vidtrack.types import Box, Detections, Estimate, Frame, ScoreMap, TRACKING
+from vidtrack.types import TRACKING, Box, Detections, Estimate, Frame, ScoreMap, Superpixels
 
 from conftest import synthetic_sequence
 
@@ -64,6 +64,34 @@ def test_the_size_gap_is_positive_for_a_box_of_the_wrong_size():
         gaps[factor] = verification_cues(stages, box.center)["verify_size_gap"]
     assert gaps[1.0] < 0.0                         # the first frame's size matches best at the target
     assert gaps[0.6] > 0.1 and gaps[1.6] > 0.1     # a larger (smaller) box at the same centre matches better
+
+
+def test_the_map_reaches_a_measured_box_far_from_the_prior():
+    """A re-detection moves the measured box several box sizes from the prior: the map covers it, so the cues
+    at the box are the target's, not the map's clamped edge."""
+    class ReDetecting:   # a measurer that states its box (as mil's does): the target, wherever the prior is
+        def initialize(self, frame, box):
+            pass
+
+        def measure(self, frame, prior):
+            return Superpixels(labels=np.zeros((1, 1), np.int32), features=np.zeros((1, 1)), scores=np.ones(1),
+                               inliers=np.ones(1, bool), box=self.box)
+
+    frames, boxes = synthetic_sequence(n=20, size=(200, 150))
+    inner = ReDetecting()
+    measurer = VerifiedMeasurer(inner, size_factors=())
+    measurer.initialize(frames[0], boxes[0])
+    box = boxes[15]
+    inner.box = box
+    far = Estimate(Box.from_center(box.center[0] - 3 * box.w, box.center[1], *box.size), None, 1.0, TRACKING)
+    vmap = measurer.measure(frames[15], far).stages["verification"]
+    region = vmap.search_region
+    for centre in (box.center, far.box.center):          # both the measured box and the prior are on the map
+        assert region.x <= centre[0] - box.w / 2 and centre[0] + box.w / 2 <= region.x + region.w
+    near = measurer.measure(frames[15], Estimate(box, None, 1.0, TRACKING)).stages["verification"]
+    on_target = verification_cues({"verification": near}, box.center)["verify"]
+    assert on_target > 0.5
+    assert verification_cues({"verification": vmap}, box.center)["verify"] == pytest.approx(on_target, abs=0.1)
 
 
 def test_map_value_is_bilinear_and_clamped_to_the_map():

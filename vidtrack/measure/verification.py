@@ -146,7 +146,8 @@ class VerifiedMeasurer:
 
     The map covers the boxes whose centres lie within ``margin`` box sizes of
     the prior's centre (the box size is the measurement's when it states one,
-    else the prior's).  Its ``stages["sizes"]`` holds the NCC maps of the
+    else the prior's), and of the measured box's centre when the measurement
+    states a box.  Its ``stages["sizes"]`` holds the NCC maps of the
     same centres for boxes ``size_factors`` times that size, so a filter can
     ask whether a box of another size at its estimate looks more like the
     first frame's target (the box has the wrong size).  The measurement is
@@ -180,16 +181,22 @@ class VerifiedMeasurer:
         if measurement is None:
             return None
         size = np.asarray(measurement_box_size(measurement, prior))
-        centre = prior.box.center
-        verification = self.verifier.verify(frame.image, self._region(centre, size, size), tuple(size))
+        # a measurement that states its box (mil's) may lie far from the prior (a re-detection), and the
+        # filter's estimate lies between the two: the map covers both
+        ends = [np.asarray(prior.box.center, float)]
+        if isinstance(getattr(measurement, "box", None), Box):
+            ends.append(np.asarray(measurement.box.center, float))
+        centre, gap = (ends[0] + ends[-1]) / 2.0, np.abs(ends[-1] - ends[0]) / 2.0
+        verification = self.verifier.verify(frame.image, self._region(centre, size, size, gap), tuple(size))
         verification.stages["sizes"] = tuple(
-            self.verifier.verify(frame.image, self._region(centre, size, f * size), tuple(f * size), colour=False)
+            self.verifier.verify(frame.image, self._region(centre, size, f * size, gap), tuple(f * size),
+                                 colour=False)
             for f in self.size_factors)
         return replace(measurement, stages={**measurement.stages, "verification": verification})
 
-    def _region(self, centre, size: np.ndarray, box_size: np.ndarray) -> Box:
-        """The union of the ``box_size`` boxes centred within ``margin`` sizes ``size`` of ``centre``."""
-        reach = self.margin * size + 0.5 * box_size
+    def _region(self, centre, size: np.ndarray, box_size: np.ndarray, gap=0.0) -> Box:
+        """The union of the ``box_size`` boxes centred within ``margin`` sizes ``size`` (plus ``gap``) of ``centre``."""
+        reach = self.margin * size + 0.5 * box_size + gap
         return Box(centre[0] - reach[0], centre[1] - reach[1], 2 * reach[0], 2 * reach[1])
 
     def learn(self, frame: Frame, posterior: Estimate) -> None:
