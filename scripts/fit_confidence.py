@@ -22,8 +22,8 @@ lost and missed loss at every threshold (``mil``: of its lost rule, on the
 held-out frames).
 
 ``mil``'s ``lost`` status has a model of its own: a second logistic
-regression on the same standardised cues, of ``IoU > 0`` (the box still
-overlaps the target), the question ``lost`` answers.  ``lost`` is that
+regression, on cues of its own (:data:`PRESENCE_CUES`), of ``IoU > 0`` (the
+box still overlaps the target), the question ``lost`` answers.  ``lost`` is that
 presence probability below ``t`` for ``k`` scored frames in a row, and ``t``
 (0.01 .. 0.99) and ``k`` (1 .. 5) are chosen on the *tune* frames held out
 sequence by sequence (each sequence's presence from the fit on the others):

@@ -183,10 +183,10 @@ class VerifiedMeasurer:
         size = np.asarray(measurement_box_size(measurement, prior))
         # a measurement that states its box (mil's) may lie far from the prior (a re-detection), and the
         # filter's estimate lies between the two: the map covers both
-        ends = [np.asarray(prior.box.center, float)]
-        if isinstance(getattr(measurement, "box", None), Box):
-            ends.append(np.asarray(measurement.box.center, float))
-        centre, gap = (ends[0] + ends[-1]) / 2.0, np.abs(ends[-1] - ends[0]) / 2.0
+        near = np.asarray(prior.box.center, float)
+        box = getattr(measurement, "box", None)
+        far = np.asarray(box.center, float) if isinstance(box, Box) else near
+        centre, gap = (near + far) / 2.0, np.abs(far - near) / 2.0
         verification = self.verifier.verify(frame.image, self._region(centre, size, size, gap), tuple(size))
         verification.stages["sizes"] = tuple(
             self.verifier.verify(frame.image, self._region(centre, size, f * size, gap), tuple(f * size),
