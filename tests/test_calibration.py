@@ -121,6 +121,7 @@ def test_mil_filter_reports_the_calibrated_probability_and_lost_by_the_presence_
         coast = kf.update(None)
         assert coast.status == LOST
     assert coast.scalars["measured"] == 0.0 and coast.scalars["coast"] == pytest.approx(np.log(6.0))
+    assert coast.scalars["unmeasured"] == 1.0 and good.scalars["unmeasured"] == 0.0
     assert coast.confidence < 0.5 < good.confidence and cal.presence_probability(coast.scalars) < cal.lost_below
     # a weak measurement (inliers on 5 % of the box): tracking until the presence has stayed low for lost_after
     kf.predict()

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 import pytest
 
@@ -67,3 +69,36 @@ def test_a_balanced_fit_holds_a_presence_model_on_its_own_cues(fit):
     assert cal.presence.lost_below == cal.lost_below and cal.lost_after in fit.LOST_AFTER
     assert cal.presence_probability({"psr": 2.0}) < cal.lost_below < cal.presence_probability({"psr": 20.0})
     assert cal.probability({"quality": 0.9}) > 0.5 > cal.probability({"quality": 0.1})
+
+
+def test_a_frame_without_any_measurement_is_lost_in_the_fit_as_in_the_filter(fit):
+    """Rows marked ``unmeasured`` are lost whatever their presence, in the rule's choice and in the status."""
+    p = np.array([0.9] * 60)
+    ious = np.array([0.7] * 30 + [0.0] * 3 + [0.7] * 27)
+    rows = [{"sequence": "A", "unmeasured": 1.0 if 30 <= k < 33 else 0.0} for k in range(60)]
+    forced = fit.unmeasured_rows(rows)
+    assert forced.tolist() == [False] * 30 + [True] * 3 + [False] * 27
+    starts = fit.run_starts(rows)
+    _, _, false_lost, missed_loss = fit.choose_lost_rule(p, ious, starts, forced)
+    assert false_lost == 0.0 and missed_loss == 0.0
+    _, _, _, missed_without = fit.choose_lost_rule(p, ious, starts)
+    assert missed_without > 0.0   # the presence alone never sees these frames
+    cal = replace(fit.logistic_fit((("psr", 0.0, 0.0, 30.0),), [{"psr": 2.0}, {"psr": 20.0}] * 5,
+                                   np.array([False, True] * 5), 1.0), lost_below=0.5, lost_after=2)
+    status = fit.lost_status(cal, [{**r, "psr": 20.0} for r in rows])
+    assert (status == "lost").tolist() == forced.tolist()   # high presence: lost exactly where nothing was measured
+
+
+def test_the_presence_cues_are_chosen_on_the_held_out_lost_rule(fit):
+    """Forward selection keeps the cue that separates overlapping boxes from lost ones and stops at noise."""
+    rng = np.random.default_rng(2)
+    rows, ious = [], []
+    for name in "ABCD":
+        for k in range(120):
+            away = 50 <= k < 70
+            rows.append({"sequence": name, "seed": 0, "psr": rng.uniform(2, 6) if away else rng.uniform(8, 30),
+                         "quality": rng.uniform(0, 1)})
+            ious.append(0.0 if away else 0.6)
+    table = (("quality", 0.0, 0.0, 1.0), ("psr", 0.0, 0.0, 30.0))
+    chosen, lines = fit.select_presence_cues(table, rows, np.array(ious), 1.0)
+    assert [c[0] for c in chosen] == ["psr"] and len(lines) == 1 and "held-out cost" in lines[0]

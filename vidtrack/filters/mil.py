@@ -259,7 +259,8 @@ class MILKalmanFilter:
         centre, in box sizes), ``motion`` (the
         innovation's Mahalanobis length), ``scale_change`` (``|log|`` of the
         measured over the predicted area), ``coast`` (``log(1 + n)``, ``n``
-        frames without an update), ``present`` and, when the measurer adds
+        frames without an update), ``present``, ``unmeasured`` (1 when the
+        measurer returned nothing at all) and, when the measurer adds
         the first frame's appearance verification map, its cues at the
         updated box and their running averages
         (:mod:`vidtrack.filters.confidence_cues`: ``verify``, ``verify_gap``,
@@ -314,6 +315,7 @@ class MILKalmanFilter:
         verification = verification_cues(stages, self._box().center)   # empty without the verification map
         scalars.update(verification)
         scalars.update(self.running_.update(verification))
+        scalars["unmeasured"] = float(measurement is None)
         confidence = float(np.clip(quality, 0.0, 1.0))
         if self.calibration_ is not None:
             confidence = self.calibration_.probability(scalars)
