@@ -233,10 +233,11 @@ def lost_status(cal: Calibration, rows: list[dict]) -> np.ndarray:
     return np.array(status)
 
 
-def fit(name: str, rows: list[dict], ious: np.ndarray, C: float) -> Calibration:
+def fit(name: str, rows: list[dict], ious: np.ndarray, C: float,
+        held_presence: np.ndarray | None = None) -> Calibration:
     """Logistic regression of ``IoU > 0.5`` on the standardised, clipped cues of ``name``."""
     cues, _, rule = TRACKERS[name]
-    return fit_cues(cues, rule, rows, ious, C, PRESENCE_CUES.get(name))
+    return fit_cues(cues, rule, rows, ious, C, PRESENCE_CUES.get(name), held_presence)
 
 
 def cue_matrix(cues, rows: list[dict]) -> np.ndarray:
@@ -343,17 +344,19 @@ def logistic_fit(cues, rows: list[dict], labels: np.ndarray, C: float, lost_belo
                        fill=fill, lower=lower, upper=upper, lost_below=lost_below)
 
 
-def fit_cues(cues, rule: str, rows: list[dict], ious: np.ndarray, C: float, presence_cues=None) -> Calibration:
+def fit_cues(cues, rule: str, rows: list[dict], ious: np.ndarray, C: float, presence_cues=None,
+             held_presence: np.ndarray | None = None) -> Calibration:
     """Logistic regression of ``IoU > 0.5`` on the standardised, clipped ``cues``; ``rule`` sets the threshold.
 
     ``"balance"``: the status from a presence model, ``IoU > 0`` on ``presence_cues``, lost below a
-    threshold for some frames in a row (:func:`choose_lost_rule` on held-out frames).
+    threshold for some frames in a row (:func:`choose_lost_rule` on held-out frames: ``held_presence``,
+    the rows' :func:`held_out_presence` on those cues, when already computed).
     """
     cal = logistic_fit(cues, rows, ious > 0.5, C)
     if rule == "balance":
-        X = cue_matrix(presence_cues, rows)
-        threshold, lost_after, _, _ = choose_lost_rule(held_out_presence(X, rows, ious, C), ious, run_starts(rows),
-                                                       unmeasured_rows(rows))
+        if held_presence is None:
+            held_presence = held_out_presence(cue_matrix(presence_cues, rows), rows, ious, C)
+        threshold, lost_after, _, _ = choose_lost_rule(held_presence, ious, run_starts(rows), unmeasured_rows(rows))
         return replace(cal, lost_below=threshold, lost_after=lost_after,
                        presence=logistic_fit(presence_cues, rows, ious > 0, C, threshold))
     # the probability of a frame whose every cue takes its missing value, rounded up
@@ -411,7 +414,10 @@ def fit_pass(name, sequences, seeds, args, *, calibrated: bool):
         if cache is not None:
             cache.parent.mkdir(parents=True, exist_ok=True)
             cache.write_text(json.dumps({"rows": rows, "ious": ious.tolist()}), encoding="utf-8")
-    cal = fit(name, rows, ious, args.C)
+    held = None   # the presence of each sequence from the fit on the others: chooses the lost rule, then printed
+    if name in PRESENCE_CUES:
+        held = held_out_presence(cue_matrix(PRESENCE_CUES[name], rows), rows, ious, args.C)
+    cal = fit(name, rows, ious, args.C, held)
     p = np.array([cal.probability(r) for r in rows])
     if TRACKERS[name][2] == "unmeasured":   # as the filter reports it: its own status, a lost frame kept low
         kept = np.array([r.get("measured", 1.0) > 0 for r in rows])
@@ -440,7 +446,6 @@ def fit_pass(name, sequences, seeds, args, *, calibrated: bool):
             print("  presence, IoU > 0, on the held-out lost rule:\n" + "\n".join(lines)
                   + f"\n  selected: {', '.join(c[0] for c in chosen)}", flush=True)
     if cal.presence is not None:   # the lost rule on frames the fit has not seen
-        held = held_out_presence(cue_matrix(PRESENCE_CUES[name], rows), rows, ious, args.C)
         starts, forced = run_starts(rows), unmeasured_rows(rows)
         status = np.where((low_runs(held, starts, cal.lost_below) >= cal.lost_after) | forced, conf_metrics.LOST,
                           conf_metrics.TRACKING)
