@@ -102,8 +102,8 @@ TRACKERS = {
 #: forward selection on the cost of the lost rule on held-out frames (:func:`select_presence_cues`,
 #: ``--select``).  mil: the colour likelihood, the correlation filter's PSR, the inlier coverage and the
 #: presence flag: cost 1.28 (false lost 0.190, missed loss 0.026 below 0.58 for 2 frames) on the packaged
-#: tracker's frames, against 1.43 for the PSR and the running colour likelihood (the best pair by held-out
-#: ROC AUC of ``IoU > 0``).
+#: tracker's frames, against 1.43 for the PSR and the running colour likelihood (the pair that ranks
+#: ``IoU > 0`` best held out; this script's figures with ``PRESENCE_CUES`` set to that pair).
 PRESENCE_CUES = {"mil": tuple(c for c in mil_filter.CUES if c[0] in ("colour", "psr", "inlier_coverage", "present"))}
 #: The runs of low presence ``mil``'s lost rule may require (``lost_after``).
 LOST_AFTER = (1, 2, 3, 4, 5)
@@ -185,7 +185,7 @@ def held_out_presence(X: np.ndarray, rows: list[dict], ious: np.ndarray, C: floa
 
 
 def lost_rule_cost(false_lost: float, missed_loss: float) -> float:
-    """``max(false_lost / 0.15, missed_loss / 0.02)``: the two failure rates against their targets (1 meets both)."""
+    """``max(false_lost / 0.15, missed_loss / 0.02)``: the two failure rates against their targets (at most 1: both met)."""
     return max(0.0 if np.isnan(false_lost) else false_lost / 0.15, 0.0 if np.isnan(missed_loss) else missed_loss / 0.02)
 
 
@@ -210,8 +210,10 @@ def choose_lost_rule(p: np.ndarray, ious: np.ndarray, starts: np.ndarray,
 
 def threshold_table(p: np.ndarray, ious: np.ndarray, starts: np.ndarray, k: int,
                     forced: np.ndarray | None = None) -> list[tuple[float, float, float, float]]:
-    """``(t, false lost, missed loss, lost rate)`` of lost = ``p < t`` for ``k`` rows in a row (or ``forced``),
-    t = 0.05 .. 0.95."""
+    """``(t, false lost, missed loss, lost rate)`` of each threshold ``t = 0.05 .. 0.95``.
+
+    Lost = ``p < t`` for ``k`` rows in a row, or ``forced`` (:func:`unmeasured_rows`).
+    """
     forced = np.zeros(len(p), bool) if forced is None else forced
     table = []
     for t in np.round(np.arange(0.05, 0.96, 0.05), 2):
@@ -235,7 +237,10 @@ def lost_status(cal: Calibration, rows: list[dict]) -> np.ndarray:
 
 def fit(name: str, rows: list[dict], ious: np.ndarray, C: float,
         held_presence: np.ndarray | None = None) -> Calibration:
-    """Logistic regression of ``IoU > 0.5`` on the standardised, clipped cues of ``name``."""
+    """Logistic regression of ``IoU > 0.5`` on the standardised, clipped cues of ``name``.
+
+    ``held_presence``: as in :func:`fit_cues`.
+    """
     cues, _, rule = TRACKERS[name]
     return fit_cues(cues, rule, rows, ious, C, PRESENCE_CUES.get(name), held_presence)
 
@@ -376,7 +381,8 @@ def main(argv=None) -> int:
     parser.add_argument("--cache", type=Path, help="keep (and reuse) each tracker's frames in this folder")
     parser.add_argument("--table", action="store_true", help="print false lost and missed loss per threshold")
     parser.add_argument("--select", action="store_true",
-                        help="also print the forward selection of cues by held-out ROC AUC (nh, pf, bayes, cbt)")
+                        help="also print the forward selection of the confidence's cues by held-out ROC AUC, and "
+                             "of mil's presence cues by the held-out lost rule's cost")
     parser.add_argument("--passes", type=int, default=1,
                         help="2: refit on the frames of the tracker run with the first pass's calibration "
                              "(its status feeds back into its search)")
@@ -406,6 +412,8 @@ def fit_pass(name, sequences, seeds, args, *, calibrated: bool):
         saved = json.loads(cache.read_text(encoding="utf-8"))
         rows, ious = saved["rows"], np.array(saved["ious"])
         wanted = {c[0] for c in TRACKERS[name][0] + PRESENCE_CUES.get(name, ())}
+        if TRACKERS[name][2] == "balance":   # its lost rule also reads whether anything was measured
+            wanted.add("unmeasured")
         missing = sorted(c for c in wanted if not any(c in r for r in rows))
         if missing:   # frames of an older tracker: they would be fitted on the fill values
             raise SystemExit(f"fit_confidence: {cache} has no frame with {', '.join(missing)}; delete it to collect again")
@@ -414,8 +422,8 @@ def fit_pass(name, sequences, seeds, args, *, calibrated: bool):
         if cache is not None:
             cache.parent.mkdir(parents=True, exist_ok=True)
             cache.write_text(json.dumps({"rows": rows, "ious": ious.tolist()}), encoding="utf-8")
-    held = None   # the presence of each sequence from the fit on the others: chooses the lost rule, then printed
-    if name in PRESENCE_CUES:
+    held = None   # each sequence's presence from the fit on the others: chooses the lost rule, scored below
+    if TRACKERS[name][2] == "balance":
         held = held_out_presence(cue_matrix(PRESENCE_CUES[name], rows), rows, ious, args.C)
     cal = fit(name, rows, ious, args.C, held)
     p = np.array([cal.probability(r) for r in rows])
@@ -445,7 +453,7 @@ def fit_pass(name, sequences, seeds, args, *, calibrated: bool):
             chosen, lines = select_presence_cues(SELECT_FROM[name], rows, ious, args.C)
             print("  presence, IoU > 0, on the held-out lost rule:\n" + "\n".join(lines)
                   + f"\n  selected: {', '.join(c[0] for c in chosen)}", flush=True)
-    if cal.presence is not None:   # the lost rule on frames the fit has not seen
+    if held is not None:   # the lost rule on frames the fit has not seen
         starts, forced = run_starts(rows), unmeasured_rows(rows)
         status = np.where((low_runs(held, starts, cal.lost_below) >= cal.lost_after) | forced, conf_metrics.LOST,
                           conf_metrics.TRACKING)

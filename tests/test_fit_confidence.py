@@ -87,18 +87,45 @@ def test_a_frame_without_any_measurement_is_lost_in_the_fit_as_in_the_filter(fit
                                    np.array([False, True] * 5), 1.0), lost_below=0.5, lost_after=2)
     status = fit.lost_status(cal, [{**r, "psr": 20.0} for r in rows])
     assert (status == "lost").tolist() == forced.tolist()   # high presence: lost exactly where nothing was measured
+    table = fit.threshold_table(p, ious, starts, 1, forced)
+    assert all(missed == 0.0 and rate == pytest.approx(3 / 60) for t, _, missed, rate in table if t <= 0.9)
+
+
+def test_the_lost_rule_is_chosen_on_the_given_held_out_presence(fit):
+    """``fit_cues`` chooses the rule on the held-out presence it is given (the script computes it once)."""
+    rows = [{"sequence": name, "psr": 20.0, "quality": 0.8} for name in "AB" for _ in range(40)]
+    ious = np.full(80, 0.7)
+    ious[[10, 11, 12, 50, 51, 52]] = 0.0
+    for k in (10, 11, 12, 50, 51, 52):
+        rows[k] = {**rows[k], "psr": 2.0}
+    cues, presence_cues = (("quality", 0.0, 0.0, 1.0),), (("psr", 0.0, 0.0, 30.0),)
+    held = np.where(ious > 0, 0.9, 0.3)
+    held[[20, 60]] = 0.3                   # single doubtful frames on the target
+    cal = fit.fit_cues(cues, "balance", rows, ious, 1.0, presence_cues, held)
+    # the dips make a single low frame a false loss: two in a row (the cues alone would separate at one)
+    assert 0.3 < cal.lost_below <= 0.9 and cal.lost_after == 2
 
 
 def test_the_presence_cues_are_chosen_on_the_held_out_lost_rule(fit):
-    """Forward selection keeps the cue that separates overlapping boxes from lost ones and stops at noise."""
+    """The selection follows the lost rule's cost, not the ranking: the cue whose dips are single frames goes first.
+
+    ``a`` is high on the target but drops below every lost frame for single frames, which costs it ranking
+    but not the rule (two low frames in a row); ``b`` ranks better but overlaps over whole runs; ``noise``
+    says nothing.
+    """
     rng = np.random.default_rng(2)
     rows, ious = [], []
     for name in "ABCD":
-        for k in range(120):
-            away = 50 <= k < 70
-            rows.append({"sequence": name, "seed": 0, "psr": rng.uniform(2, 6) if away else rng.uniform(8, 30),
-                         "quality": rng.uniform(0, 1)})
+        for k in range(150):
+            away = 60 <= k < 80
+            a = 5.0 if away else (1.0 if k % 10 == 3 else 20.0)
+            b = rng.uniform(0.0, 0.45) if away else rng.uniform(0.35, 1.0)
+            rows.append({"sequence": name, "seed": 0, "a": a, "b": b, "noise": rng.uniform(0, 1)})
             ious.append(0.0 if away else 0.6)
-    table = (("quality", 0.0, 0.0, 1.0), ("psr", 0.0, 0.0, 30.0))
-    chosen, lines = fit.select_presence_cues(table, rows, np.array(ious), 1.0)
-    assert [c[0] for c in chosen] == ["psr"] and len(lines) == 1 and "held-out cost" in lines[0]
+    ious = np.array(ious)
+    table = (("noise", 0.0, 0.0, 1.0), ("b", 0.0, 0.0, 1.0), ("a", 0.0, 0.0, 30.0))
+    by_ranking, _ = fit.select_cues(table, rows, ious, 1.0)   # the confidence's selection, by held-out ROC AUC
+    assert by_ranking[0][0] == "b"
+    chosen, lines = fit.select_presence_cues(table, rows, ious, 1.0)
+    assert chosen[0][0] == "a" and "noise" not in [c[0] for c in chosen]
+    assert len(lines) == len(chosen) and all("held-out cost" in line for line in lines)

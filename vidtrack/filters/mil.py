@@ -260,7 +260,8 @@ class MILKalmanFilter:
         innovation's Mahalanobis length), ``scale_change`` (``|log|`` of the
         measured over the predicted area), ``coast`` (``log(1 + n)``, ``n``
         frames without an update), ``present``, ``unmeasured`` (1 when the
-        measurer returned nothing at all) and, when the measurer adds
+        measurer returned nothing at all; narrower than ``measured`` = 0,
+        which a gated or too weak measurement also gives) and, when the measurer adds
         the first frame's appearance verification map, its cues at the
         updated box and their running averages
         (:mod:`vidtrack.filters.confidence_cues`: ``verify``, ``verify_gap``,
