@@ -230,8 +230,7 @@ def lost_status(cal: Calibration, rows: list[dict]) -> np.ndarray:
     for row, start in zip(rows, run_starts(rows)):
         if start:
             rule.reset()
-        status.append(conf_metrics.LOST if rule.lost(row, unmeasured=row.get("unmeasured", 0.0) > 0)
-                      else conf_metrics.TRACKING)
+        status.append(conf_metrics.LOST if rule.lost(row) else conf_metrics.TRACKING)
     return np.array(status)
 
 

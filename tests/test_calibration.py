@@ -58,7 +58,7 @@ def test_lost_needs_lost_after_low_frames_in_a_row_or_no_measurement():
     low, high = {"a": 1.0}, {"a": 3.0}
     assert [rule.lost(c) for c in (low, low, high, low, low, low, low)] == [False, False, False, False, False,
                                                                            True, True]
-    assert rule.lost(high, unmeasured=True) and not rule.lost(high)
+    assert rule.lost({**high, "unmeasured": 1.0}) and not rule.lost(high)
     rule.lost(low), rule.lost(low)
     rule.reset()
     assert not rule.lost(low)

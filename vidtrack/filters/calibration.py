@@ -123,8 +123,8 @@ class LostRule:
 
     ``lost`` when the presence (:meth:`Calibration.presence_probability`) has been below
     ``lost_below`` for ``lost_after`` frames in a row, or when nothing was
-    measured at all (``unmeasured``); a single doubtful frame between good
-    ones is not a loss.
+    measured at all (the frame's ``unmeasured`` scalar is 1); a single
+    doubtful frame between good ones is not a loss.
     """
 
     def __init__(self, calibration: Calibration) -> None:
@@ -135,11 +135,11 @@ class LostRule:
         """Forget the run of low frames (a new target)."""
         self.low_run = 0
 
-    def lost(self, cues: Mapping[str, float], *, unmeasured: bool = False) -> bool:
-        """Whether this frame (its ``cues``) is ``lost``; call once per frame, in order."""
+    def lost(self, cues: Mapping[str, float]) -> bool:
+        """Whether this frame (its ``cues``, with ``unmeasured``) is ``lost``; call once per frame, in order."""
         low = self.calibration.presence_probability(cues) < self.calibration.lost_below
         self.low_run = self.low_run + 1 if low else 0
-        return unmeasured or self.low_run >= self.calibration.lost_after
+        return cues.get("unmeasured", 0.0) > 0 or self.low_run >= self.calibration.lost_after
 
 
 @lru_cache(maxsize=None)

@@ -316,12 +316,11 @@ class MILKalmanFilter:
         verification = verification_cues(stages, self._box().center)   # empty without the verification map
         scalars.update(verification)
         scalars.update(self.running_.update(verification))
-        scalars["unmeasured"] = float(measurement is None)
+        scalars["unmeasured"] = float(measurement is None)   # nothing at all (the search left the frame): lost
         confidence = float(np.clip(quality, 0.0, 1.0))
         if self.calibration_ is not None:
             confidence = self.calibration_.probability(scalars)
-            # nothing measured at all (the search left the frame) is lost at once
-            status = LOST if self.lost_rule_.lost(scalars, unmeasured=measurement is None) else TRACKING
+            status = LOST if self.lost_rule_.lost(scalars) else TRACKING
         cov = self.C_ @ self.P_ @ self.C_.T
         self.estimate_ = Estimate(self._box(), cov, confidence, status, scalars)
         return self.estimate_
