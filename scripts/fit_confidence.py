@@ -2,21 +2,22 @@
 
 Runs each tracker (the score-map trackers and ``cbt`` with their calibration
 switched off, so the cues are those of the uncalibrated tracker; ``mil`` as
-packaged, since neither its cues nor its boxes depend on its calibration,
-which also decides whether it measures the appearance verification) over the *tune* sequences of
+packaged, with its packaged calibration, which decides whether it measures the
+appearance verification and, through ``lost``, where it searches) over the *tune* sequences of
 ``../shared/data/sequences`` at the given seeds, records every frame's cues
 (the filter's ``scalars``, see :mod:`vidtrack.filters.calibration`) and
 whether its box overlaps the ground truth by more than 0.5 (annotated frames,
 the init frame left out), fits scikit-learn's ``LogisticRegression`` on the
 standardised cues, and writes ``vidtrack/filters/calibration/<tracker>.json``::
 
-    python scripts/fit_confidence.py ../shared/data/sequences --trackers mil --seeds 0,1
+    python scripts/fit_confidence.py ../shared/data/sequences --trackers mil --seeds 0,1 --passes 2
     python scripts/fit_confidence.py ../shared/data/sequences --trackers nh,pf,bayes,cbt --seeds 0 --select
 
 ``--passes 2`` refits on the frames of the tracker run with the first fit,
-for a tracker whose status feeds back into its search; with the packaged
-rules none does (``mil``: ``fusion.search_when_lost`` off; the score-map
-trackers: ``lost`` as without the calibration), one pass suffices.  ``--cache DIR``
+for a tracker whose status feeds back into its search: ``mil``, which searches
+a frame it reports lost as an unmeasured one (``fusion.search_when_lost``), so
+its boxes follow its lost rule.  The score-map trackers' ``lost`` is as without
+the calibration, and one pass suffices.  ``--cache DIR``
 keeps the frames to refit without tracking again; ``--table`` prints false
 lost and missed loss at every threshold (``mil``: of its lost rule, on the
 held-out frames).
@@ -74,8 +75,8 @@ OUT = Path(__file__).resolve().parents[1] / "vidtrack" / "filters" / "calibratio
 
 #: The cues the packaged files use, chosen on tune by forward selection on :func:`held_out_auc` (fit on 12
 #: sequences, score the 13th, pooled).  mil: the running verification, the inlier coverage, the presence
-#: flag, the colour likelihood and the verification gap (0.944 on the packaged tracker's frames; the
-#: quality, PSR and inlier coverage 0.912; all of :data:`~vidtrack.filters.mil.CUES` 0.926).  The score-map
+#: flag, the colour likelihood and the verification gap (0.945 on the packaged tracker's frames; the
+#: quality, PSR and inlier coverage 0.914; all of :data:`~vidtrack.filters.mil.CUES` 0.929).  The score-map
 #: trackers and cbt, likewise.  nh: the running colour likelihood and the
 #: verification gap (0.938; with the size gap as well 0.928, the uncalibrated confidence 0.764, all of
 #: :data:`~vidtrack.filters.score_trackers.CUES` 0.910); pf: the running colour likelihood, the verification
@@ -92,7 +93,7 @@ CBT_CUES = tuple(c for c in cbt_filter.CUES if c[0] in ("colour_mean", "verify_m
 
 #: tracker -> (its cues, the setting that switches its calibration off, the rule of its lost threshold)
 TRACKERS = {
-    "mil": (MIL_CUES, {}, "balance"),   # its cues and boxes do not depend on its calibration
+    "mil": (MIL_CUES, {}, "balance"),   # run as packaged: its lost rule steers its search (fit with --passes 2)
     "nh": (NH_CUES, {"confidence": None}, "unmeasured"),
     "pf": (PF_CUES, {"confidence": None}, "unmeasured"),
     "bayes": (BAYES_CUES, {"confidence": None}, "unmeasured"),
@@ -101,9 +102,11 @@ TRACKERS = {
 #: The cues of the presence model ``P(IoU > 0)`` that decides ``lost`` (rule ``"balance"``), chosen on tune by
 #: forward selection on the cost of the lost rule on held-out frames (:func:`select_presence_cues`,
 #: ``--select``).  mil: the colour likelihood, the correlation filter's PSR, the inlier coverage and the
-#: presence flag: cost 1.28 (false lost 0.190, missed loss 0.026 below 0.58 for 2 frames) on the packaged
-#: tracker's frames, against 1.43 for the PSR and the running colour likelihood (the pair that ranks
-#: ``IoU > 0`` best held out; this script's figures with ``PRESENCE_CUES`` set to that pair).
+#: presence flag, selected in that order on the frames of ``mil`` searching a lost frame as a measured one.
+#: On the packaged tracker's frames (it searches a frame it reports lost): cost 1.35 (false lost 0.202,
+#: missed loss 0.026 below 0.54 for 2 frames), against 1.38 for the PSR and the running colour likelihood
+#: (the pair that ranks ``IoU > 0`` best held out) and 1.39 for the set the greedy selection stops at there
+#: (the colour likelihood, the presence flag, the coasting count).
 PRESENCE_CUES = {"mil": tuple(c for c in mil_filter.CUES if c[0] in ("colour", "psr", "inlier_coverage", "present"))}
 #: The runs of low presence ``mil``'s lost rule may require (``lost_after``).
 LOST_AFTER = (1, 2, 3, 4, 5)

@@ -9,15 +9,17 @@ import numpy as np
 import pytest
 
 import vidtrack
+from vidtrack.config import with_settings
 from vidtrack.errors import UsageError
 from vidtrack.filters.mil import KalmanConfig, MILKalmanFilter, box_from_state, state_from_box
 from vidtrack.measure import superpixels as sp
 from vidtrack.measure.mil import inlier_measurement, locate_inliers
+from vidtrack.measure.mil_fusion import MILMeasurer
 from vidtrack.measure.threads import SecondThread
 from vidtrack.measure.verification import VerifiedMeasurer
 from vidtrack.recipes import build_tracker, recipe_config
 from vidtrack.recipes.mil import build_mil
-from vidtrack.types import Box, Frame, Superpixels
+from vidtrack.types import LOST, TRACKING, Box, Estimate, Frame, Superpixels
 
 
 def test_measurement_of_a_known_inlier_set():
@@ -358,7 +360,8 @@ def test_the_command_line_runs_mil_paper(tmp_path):
 
 def test_the_confidence_reads_the_first_frames_appearance_without_moving_a_box():
     """With its calibration ``mil`` measures the appearance verification and reads its cues at the box; the
-    boxes are those of the tracker without it, and ``mil-paper`` (no calibration) does not measure it."""
+    boxes, on a clip never reported lost, are those of the tracker without it, and ``mil-paper`` (no
+    calibration) does not measure it."""
     runs = {}
     for confidence in ("mil", None):
         tracker = build_tracker("mil", seed=0, settings={"kalman.confidence": confidence})
@@ -372,3 +375,23 @@ def test_the_confidence_reads_the_first_frames_appearance_without_moving_a_box()
     assert [s.box.as_array().tolist() for s in states] == [s.box.as_array().tolist() for s in runs[None][1]]
     assert not isinstance(build_tracker("mil-paper", seed=0).measurer, VerifiedMeasurer)
     assert all(s.status == "tracking" and s.confidence > 0.5 for s in states)   # an easy clip: never in doubt
+
+
+def test_a_frame_reported_lost_is_searched_as_an_unmeasured_one():
+    """``fusion.search_when_lost`` (on in ``mil``): a prior the filter reports lost widens the search
+    (the lost bag, the filter's re-detection), so a target 1.25 boxes from the prediction is found; from a
+    prior reported tracking, or with the switch off, it is not.  ``mil-paper`` searches as the paper does."""
+    found = {}
+    for on in (True, False):
+        for status in (LOST, TRACKING):
+            config = with_settings(recipe_config("mil"), {"fusion.search_when_lost": on})
+            measurer = MILMeasurer(config, rng=0)
+            measurer.initialize(_scene(0, 50, 60), Box(38, 48, 24, 24))
+            for k in range(1, 4):
+                measurer.measure(_scene(k, 50, 60), Estimate(Box(38, 48, 24, 24), covariance=np.eye(8)))
+                measurer.learn(_scene(k, 50, 60), Estimate(Box(38, 48, 24, 24), scalars={"measured": 1.0}))
+            z = measurer.measure(_scene(4, 80, 60), Estimate(Box(38, 48, 24, 24), covariance=np.eye(8), status=status))
+            found[on, status] = None if z is None or z.box is None else z.box.center
+    assert found[True, LOST] is not None and np.allclose(found[True, LOST], (80, 60), atol=2.0)
+    assert found[True, TRACKING] is None and found[False, LOST] is None and found[False, TRACKING] is None
+    assert recipe_config("mil").fusion.search_when_lost and not recipe_config("mil-paper").fusion.search_when_lost

@@ -105,7 +105,7 @@ class FusionConfig:
                                        "around the prediction, so its cost follows the box, not the frame")
     present: float | None = option(0.5, "a predicted-only frame is still tracking when the filter's peak of this "
                                         "quality lies at the prediction (none: it is lost)")
-    search_when_lost: bool = option(False, "a frame the filter reports lost (its calibrated lost rule) is "
+    search_when_lost: bool = option(True, "a frame the filter reports lost (its calibrated lost rule) is "
                                            "searched as an unmeasured one: wider bag, re-detection")
     core: bool = option(True, "run the paper's superpixel / SVM / graph-cut core (off: the correlation filter "
                               "alone measures the box, an ablation)")

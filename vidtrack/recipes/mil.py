@@ -60,7 +60,8 @@ def build_mil(config: MILConfig, seed=None, *, threads: bool = True) -> Tracker:
 
     With a calibrated confidence the measurer is wrapped in the first frame's appearance verification
     (:class:`~vidtrack.measure.verification.VerifiedMeasurer`, its map at the predicted box size only), whose
-    cues the calibration reads; the measurements, and so the boxes, are the same.
+    cues the calibration reads; the measurements are the same, and so are the boxes until the calibrated
+    status reports a frame lost, which is then searched as an unmeasured one (``fusion.search_when_lost``).
     """
     measurer = MILMeasurer(config, rng=seed, threads=threads)
     if config.kalman.confidence is not None:
@@ -72,7 +73,7 @@ MIL = MILConfig()
 
 MIL_PAPER = MILConfig(
     graphcut=GraphCutConfig(lost_bag=False),
-    fusion=FusionConfig(refine=False, size_from="inliers", redetect=False, present=None),
+    fusion=FusionConfig(refine=False, size_from="inliers", redetect=False, present=None, search_when_lost=False),
     kalman=KalmanConfig(coast_damping=1.0, size_damping=1.0, confidence=None),
 )
 
