@@ -13,7 +13,8 @@ standardised cues, and writes ``vidtrack/filters/calibration/<tracker>.json``::
     python scripts/fit_confidence.py ../shared/data/sequences --trackers mil --seeds 0,1 --passes 2
     python scripts/fit_confidence.py ../shared/data/sequences --trackers nh,pf,bayes,cbt --seeds 0 --select
 
-``--passes 2`` refits on the frames of the tracker run with the first fit,
+``--passes 2`` refits on the frames of the tracker run with the first fit
+(written to the package, where the tracker reads it, so not with another ``--out``),
 for a tracker whose status feeds back into its search: ``mil``, which searches
 a frame it reports lost as an unmeasured one (``fusion.search_when_lost``), so
 its boxes follow its lost rule.  The score-map trackers' ``lost`` is as without
@@ -387,8 +388,11 @@ def main(argv=None) -> int:
                              "of mil's presence cues by the held-out lost rule's cost")
     parser.add_argument("--passes", type=int, default=1,
                         help="2: refit on the frames of the tracker run with the first pass's calibration "
-                             "(its status feeds back into its search)")
+                             "(its status feeds back into its search); writes the packaged files")
     args = parser.parse_args(argv)
+    if args.passes > 1 and args.out.resolve() != OUT.resolve():
+        parser.error("--passes 2 runs the tracker with the first pass's file, which it reads from the package: "
+                     "leave --out at the package's folder")
     names = args.trackers.split(",")
     unknown = [n for n in names if n not in TRACKERS]
     if unknown:

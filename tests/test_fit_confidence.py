@@ -129,3 +129,13 @@ def test_the_presence_cues_are_chosen_on_the_held_out_lost_rule(fit):
     chosen, lines = fit.select_presence_cues(table, rows, ious, 1.0)
     assert chosen[0][0] == "a" and "noise" not in [c[0] for c in chosen]
     assert len(lines) == len(chosen) and all("held-out cost" in line for line in lines)
+
+
+def test_a_second_pass_refuses_a_file_the_tracker_would_not_read(fit, tmp_path, capsys):
+    """The second pass runs the tracker with the first pass's file, which the tracker reads from the package:
+    with ``--out`` elsewhere it would run with the old file, so the script stops before tracking anything."""
+    with pytest.raises(SystemExit) as stop:
+        fit.main([str(tmp_path / "no-dataset"), "--trackers", "mil", "--passes", "2", "--out", str(tmp_path)])
+    assert stop.value.code == 2
+    assert "--passes 2" in capsys.readouterr().err
+    assert not any(tmp_path.iterdir())
