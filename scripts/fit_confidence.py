@@ -1,7 +1,8 @@
 """Fit the calibrated confidence of ``mil``, ``nh``, ``pf``, ``bayes`` and ``cbt`` on the *tune* split.
 
 Runs each tracker (the score-map trackers and ``cbt`` with their calibration
-switched off, so the cues are those of the uncalibrated tracker; ``mil`` as
+switched off, so the cues are those of the uncalibrated tracker, and the
+score-map trackers' second pass with the first pass's file; ``mil`` as
 packaged, with its packaged calibration, which decides whether it measures the
 appearance verification and, through ``lost``, where it searches) over the *tune* sequences of
 ``../shared/data/sequences`` at the given seeds, records every frame's cues
@@ -11,14 +12,17 @@ the init frame left out), fits scikit-learn's ``LogisticRegression`` on the
 standardised cues, and writes ``vidtrack/filters/calibration/<tracker>.json``::
 
     python scripts/fit_confidence.py ../shared/data/sequences --trackers mil --seeds 0,1 --passes 2
-    python scripts/fit_confidence.py ../shared/data/sequences --trackers nh,pf,bayes,cbt --seeds 0 --select
+    python scripts/fit_confidence.py ../shared/data/sequences --trackers nh,pf,bayes --seeds 0 --passes 2
+    python scripts/fit_confidence.py ../shared/data/sequences --trackers cbt --seeds 0
 
 ``--passes 2`` refits on the frames of the tracker run with the first fit
 (written to the package, where the tracker reads it, so not with another ``--out``),
 for a tracker whose status feeds back into its search: ``mil``, which searches
-a frame it reports lost as an unmeasured one (``fusion.search_when_lost``), so
-its boxes follow its lost rule.  The score-map trackers' ``lost`` is as without
-the calibration, and one pass suffices.  ``--cache DIR``
+a frame it reports lost as an unmeasured one (``fusion.search_when_lost``), and
+the score-map trackers, whose detector re-detects while they report lost and
+learns only while they report tracking, so their boxes follow their lost rule.
+``cbt``'s ``lost`` is as without the calibration, and one pass suffices.
+``--select`` prints the cue selection described below.  ``--cache DIR``
 keeps the frames to refit without tracking again; ``--table`` prints false
 lost and missed loss at every threshold (``mil``: of its lost rule, on the
 held-out frames).
@@ -32,12 +36,14 @@ sequence by sequence (each sequence's presence from the fit on the others):
 the pair minimising ``max(false_lost / 0.15, missed_loss / 0.02)``, i.e.
 balancing the two failure rates of :mod:`vidtrack.eval.confidence` against
 the targets they are held to, on frames the fit has not seen.  The
-score-map trackers and ``cbt`` keep their own status (``lost``: the update
-was skipped; ``cbt``: its uncalibrated confidence below its ``lost_below``),
-so their detector's re-detection, which it starts, and their boxes are
-unchanged; their file's threshold is the probability of a frame whose cues
-all take their missing values (nothing of the target seen), and a lost
-frame's probability is kept below it.  The script prints, per tracker, the
+score-map trackers' ``lost`` is read from the confidence itself: ``P(IoU >
+0.5)`` below ``t`` for ``k`` frames in a row, or a frame whose update was
+skipped (its ``unmeasured`` scalar), with ``(t, k)`` chosen in the same way
+on the held-out confidence.  ``cbt`` keeps its own status (its uncalibrated
+confidence below its ``lost_below``), so its detector's re-detection and its
+boxes are unchanged; its file's threshold is the probability of a frame
+whose cues all take their missing values (nothing of the target seen), and a
+lost frame's probability is kept below it.  The script prints, per tracker, the
 frames used, the coefficients, the tune ROC AUC, expected calibration error,
 false lost and missed loss of the fitted confidence (with the status as the
 filter reports it), and the ROC AUC with each sequence held out
@@ -78,7 +84,7 @@ OUT = Path(__file__).resolve().parents[1] / "vidtrack" / "filters" / "calibratio
 #: sequences, score the 13th, pooled).  mil: the running verification, the inlier coverage, the presence
 #: flag, the colour likelihood and the verification gap (0.945 on the packaged tracker's frames; the
 #: quality, PSR and inlier coverage 0.914; all of :data:`~vidtrack.filters.mil.CUES` 0.929).  The score-map
-#: trackers and cbt, likewise.  nh: the running colour likelihood and the
+#: trackers and cbt, likewise, on the uncalibrated tracker's frames.  nh: the running colour likelihood and the
 #: verification gap (0.938; with the size gap as well 0.928, the uncalibrated confidence 0.764, all of
 #: :data:`~vidtrack.filters.score_trackers.CUES` 0.910); pf: the running colour likelihood, the verification
 #: gap and the particles' spread (0.942; 0.684, all 0.777); bayes: the running verification and colour
@@ -95,9 +101,9 @@ CBT_CUES = tuple(c for c in cbt_filter.CUES if c[0] in ("colour_mean", "verify_m
 #: tracker -> (its cues, the setting that switches its calibration off, the rule of its lost threshold)
 TRACKERS = {
     "mil": (MIL_CUES, {}, "balance"),   # run as packaged: its lost rule steers its search (fit with --passes 2)
-    "nh": (NH_CUES, {"confidence": None}, "unmeasured"),
-    "pf": (PF_CUES, {"confidence": None}, "unmeasured"),
-    "bayes": (BAYES_CUES, {"confidence": None}, "unmeasured"),
+    "nh": (NH_CUES, {"confidence": None}, "confidence"),   # its lost rule steers its detector (fit with --passes 2)
+    "pf": (PF_CUES, {"confidence": None}, "confidence"),
+    "bayes": (BAYES_CUES, {"confidence": None}, "confidence"),
     "cbt": (CBT_CUES, {"confidence": None}, "unmeasured"),
 }
 #: The cues of the presence model ``P(IoU > 0)`` that decides ``lost`` (rule ``"balance"``), chosen on tune by
@@ -117,6 +123,9 @@ SELECT_FROM = {"mil": mil_filter.CUES, "nh": score_trackers.CUES, "pf": score_tr
 THRESHOLD_RULES = {
     "balance": "presence P(IoU > 0) below lost_below for lost_after frames in a row; the pair is the argmin of "
                "max(false_lost / 0.15, missed_loss / 0.02) on the tune frames, each sequence held out of the fit",
+    "confidence": "P(IoU > 0.5) below lost_below for lost_after frames in a row, or the update skipped; the pair is "
+                  "the argmin of max(false_lost / 0.15, missed_loss / 0.02) on the tune frames, each sequence held out "
+                  "of the fit",
     "unmeasured": "just above the probability of a frame without an update (the filter keeps its status: lost = the update was skipped)",
 }
 
@@ -361,6 +370,11 @@ def fit_cues(cues, rule: str, rows: list[dict], ious: np.ndarray, C: float, pres
     the rows' :func:`held_out_presence` on those cues, when already computed).
     """
     cal = logistic_fit(cues, rows, ious > 0.5, C)
+    if rule == "confidence":   # the rule read from this confidence, held out (``held_presence``, when computed)
+        held = held_presence if held_presence is not None else held_out_presence(cue_matrix(cues, rows), rows,
+                                                                                   ious, C, above=0.5)
+        threshold, lost_after, _, _ = choose_lost_rule(held, ious, run_starts(rows), unmeasured_rows(rows))
+        return replace(cal, lost_below=threshold, lost_after=lost_after)
     if rule == "balance":
         if held_presence is None:
             held_presence = held_out_presence(cue_matrix(presence_cues, rows), rows, ious, C)
@@ -418,7 +432,7 @@ def fit_pass(name, sequences, seeds, args, *, calibrated: bool):
         saved = json.loads(cache.read_text(encoding="utf-8"))
         rows, ious = saved["rows"], np.array(saved["ious"])
         wanted = {c[0] for c in TRACKERS[name][0] + PRESENCE_CUES.get(name, ())}
-        if TRACKERS[name][2] == "balance":   # its lost rule also reads whether anything was measured
+        if TRACKERS[name][2] != "unmeasured":   # its lost rule also reads whether anything was measured
             wanted.add("unmeasured")
         missing = sorted(c for c in wanted if not any(c in r for r in rows))
         if missing:   # frames of an older tracker: they would be fitted on the fill values
@@ -428,9 +442,11 @@ def fit_pass(name, sequences, seeds, args, *, calibrated: bool):
         if cache is not None:
             cache.parent.mkdir(parents=True, exist_ok=True)
             cache.write_text(json.dumps({"rows": rows, "ious": ious.tolist()}), encoding="utf-8")
-    held = None   # each sequence's presence from the fit on the others: chooses the lost rule, scored below
+    held = None   # each sequence's presence (or confidence) from the fit on the others: chooses the lost rule
     if TRACKERS[name][2] == "balance":
         held = held_out_presence(cue_matrix(PRESENCE_CUES[name], rows), rows, ious, args.C)
+    elif TRACKERS[name][2] == "confidence":
+        held = held_out_presence(cue_matrix(TRACKERS[name][0], rows), rows, ious, args.C, above=0.5)
     cal = fit(name, rows, ious, args.C, held)
     p = np.array([cal.probability(r) for r in rows])
     if TRACKERS[name][2] == "unmeasured":   # as the filter reports it: its own status, a lost frame kept low
@@ -441,7 +457,7 @@ def fit_pass(name, sequences, seeds, args, *, calibrated: bool):
         status = lost_status(cal, rows)
     m = conf_metrics.confidence_metrics(ious, p, status)
     weights = ", ".join(f"{c} {w:+.2f}" for c, w in zip(cal.cues, cal.coef))
-    lost = f"lost below {cal.lost_below:.3f}"
+    lost = f"lost below {cal.lost_below:.3f}" + (f" for {cal.lost_after} frame(s)" if cal.lost_after > 1 else "")
     if cal.presence is not None:
         presence = ", ".join(f"{c} {w:+.2f}" for c, w in zip(cal.presence.cues, cal.presence.coef))
         lost = (f"presence: {presence}; intercept {cal.presence.intercept:+.2f}; lost below {cal.lost_below:.3f} "
@@ -465,10 +481,11 @@ def fit_pass(name, sequences, seeds, args, *, calibrated: bool):
                           conf_metrics.TRACKING)
         print(f"  tune, each sequence held out: false lost {conf_metrics.false_lost(ious, status):.3f}, "
               f"missed loss {conf_metrics.missed_loss(ious, status):.3f}", flush=True)
-        confidence = held_out_presence(cue_matrix(TRACKERS[name][0], rows), rows, ious, args.C, above=0.5)
-        t, k, fl, ml = choose_lost_rule(confidence, ious, starts, forced)
-        print(f"  (the same rule on the confidence P(IoU > 0.5) instead, best below {t:.2f} for {k} frame(s): "
-              f"false lost {fl:.3f}, missed loss {ml:.3f})", flush=True)
+        if TRACKERS[name][2] == "balance":
+            confidence = held_out_presence(cue_matrix(TRACKERS[name][0], rows), rows, ious, args.C, above=0.5)
+            t, k, fl, ml = choose_lost_rule(confidence, ious, starts, forced)
+            print(f"  (the same rule on the confidence P(IoU > 0.5) instead, best below {t:.2f} for {k} frame(s): "
+                  f"false lost {fl:.3f}, missed loss {ml:.3f})", flush=True)
         if args.table:
             for t, fl, ml, rate in threshold_table(held, ious, starts, cal.lost_after, forced):
                 print(f"    held out, lost below {t:.2f}: false lost {fl:.3f}, missed loss {ml:.3f}, "

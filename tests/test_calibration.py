@@ -10,7 +10,7 @@ from vidtrack.filters import mil as mil_filter
 from vidtrack.filters import score_trackers
 from vidtrack.filters.calibration import Calibration, LostRule, load_calibration, logistic_probability
 from vidtrack.filters.mil import KalmanConfig, MILKalmanFilter
-from vidtrack.types import LOST, TRACKING, Box, Superpixels
+from vidtrack.types import LOST, TRACKING, Box, ScoreMap, Superpixels
 
 
 def _calibration(**changes) -> Calibration:
@@ -96,7 +96,11 @@ def test_packaged_calibrations_match_their_filters_cues(name, cues, good):
     assert 0.0 < cal.lost_below < 1.0
     # a typical well-measured frame is likely right and not lost; a long coast without a peak is lost
     assert cal.probability(good) > 0.5 and cal.presence_probability(good) >= cal.lost_below
-    assert cal.presence_probability(COASTING) < cal.lost_below
+    rule = LostRule(cal)
+    assert not any(rule.lost({**good, "unmeasured": 0.0}) for _ in range(cal.lost_after + 2))
+    if name == "mil":   # its presence model reads a coast as lost by itself
+        assert cal.presence_probability(COASTING) < cal.lost_below
+    assert LostRule(cal).lost({**COASTING, "unmeasured": 1.0})   # a frame without an update: lost at once
 
 
 def _measurement(box: Box, quality: float, psr: float, coverage: float = 0.6) -> Superpixels:
@@ -138,3 +142,38 @@ def test_mil_filter_reports_the_calibrated_probability_and_lost_by_the_presence_
     assert raw.update(_measurement(box, 0.9, 20.0)).confidence == pytest.approx(0.9)
     raw.predict()
     assert raw.update(None).status == LOST
+
+
+def _map_with_quality(centre, quality: float) -> ScoreMap:
+    """A score map peaked at ``centre`` (20 x 20 boxes) whose peak quality is ``quality``."""
+    origin = (centre[0] - 10.0 - 15, centre[1] - 10.0 - 15)
+    smap = ScoreMap(np.zeros((31, 31)), origin, 1.0, (20.0, 20.0))
+    c = smap.centers()
+    scores = np.exp(-((c[..., 0] - centre[0]) ** 2 + (c[..., 1] - centre[1]) ** 2) / 18.0)
+    return ScoreMap(scores, origin, 1.0, (20.0, 20.0), quality=quality)
+
+
+@pytest.mark.parametrize("cls", [score_trackers.NormalHedgeBoxFilter, score_trackers.ParticleBoxFilter,
+                                 score_trackers.GridBayesBoxFilter])
+def test_score_map_filters_report_lost_by_their_calibrated_confidence(cls, monkeypatch):
+    # P(IoU > 0.5) rising with the map's quality; lost below 0.3 for 2 frames in a row
+    cal = Calibration(cues=("quality",), mean=np.array([0.5]), scale=np.array([0.1]), coef=np.array([4.0]),
+                      intercept=0.0, fill=np.array([0.0]), lower=np.array([0.0]), upper=np.array([1.0]),
+                      lost_below=0.3, lost_after=2)
+    monkeypatch.setattr(score_trackers, "load_calibration", lambda name: cal)
+    f = cls(rng=np.random.default_rng(0), confidence="test")
+    centre = np.array([100.0, 100.0])
+    f.initialize(Box.from_center(*centre, 20.0, 20.0))
+    good = f.update(_map_with_quality(f.predict().box.center, 0.9))
+    assert good.status == TRACKING and good.confidence == pytest.approx(cal.probability({"quality": 0.9}))
+    # quality 0.4: above the filter's own lost_below (0.35), so the update is made, but P(IoU > 0.5) is 0.27
+    weak = [f.update(_map_with_quality(f.predict().box.center, 0.4)) for _ in range(3)]
+    assert all(w.scalars["measured"] == 1.0 and w.confidence < cal.lost_below for w in weak)
+    assert [w.status for w in weak] == [TRACKING, LOST, LOST]
+    assert f.update(_map_with_quality(f.predict().box.center, 0.9)).status == TRACKING
+    skipped = f.update(_map_with_quality(f.predict().box.center, 0.1))   # the update skipped: lost at once
+    assert skipped.status == LOST and skipped.scalars["unmeasured"] == 1.0
+    # uncalibrated: lost only when the update was skipped
+    raw = cls(rng=np.random.default_rng(0))
+    raw.initialize(Box.from_center(*centre, 20.0, 20.0))
+    assert all(raw.update(_map_with_quality(raw.predict().box.center, 0.4)).status == TRACKING for _ in range(3))

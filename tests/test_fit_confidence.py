@@ -91,19 +91,39 @@ def test_a_frame_without_any_measurement_is_lost_in_the_fit_as_in_the_filter(fit
     assert all(missed == 0.0 and rate == pytest.approx(3 / 60) for t, _, missed, rate in table if t <= 0.9)
 
 
-def test_the_lost_rule_is_chosen_on_the_given_held_out_presence(fit):
-    """``fit_cues`` chooses the rule on the held-out presence it is given (the script computes it once)."""
-    rows = [{"sequence": name, "psr": 20.0, "quality": 0.8} for name in "AB" for _ in range(40)]
+def _two_losses(cues: dict, lost_cues: dict, low: float):
+    """Two sequences of 40 rows of ``cues``, each with a 3-frame loss (IoU 0, ``lost_cues``); a held-out
+    probability ``low`` on the losses and on one single doubtful frame on the target in each, 0.9 elsewhere."""
+    rows = [{"sequence": name, **cues} for name in "AB" for _ in range(40)]
     ious = np.full(80, 0.7)
     ious[[10, 11, 12, 50, 51, 52]] = 0.0
     for k in (10, 11, 12, 50, 51, 52):
-        rows[k] = {**rows[k], "psr": 2.0}
+        rows[k] = {**rows[k], **lost_cues}
+    held = np.where(ious > 0, 0.9, low)
+    held[[20, 60]] = low
+    return rows, ious, held
+
+
+def test_the_lost_rule_is_chosen_on_the_given_held_out_presence(fit):
+    """``fit_cues`` chooses the rule on the held-out presence it is given (the script computes it once)."""
+    rows, ious, held = _two_losses({"psr": 20.0, "quality": 0.8}, {"psr": 2.0}, low=0.3)
     cues, presence_cues = (("quality", 0.0, 0.0, 1.0),), (("psr", 0.0, 0.0, 30.0),)
-    held = np.where(ious > 0, 0.9, 0.3)
-    held[[20, 60]] = 0.3                   # single doubtful frames on the target
     cal = fit.fit_cues(cues, "balance", rows, ious, 1.0, presence_cues, held)
     # the dips make a single low frame a false loss: two in a row (the cues alone would separate at one)
     assert 0.3 < cal.lost_below <= 0.9 and cal.lost_after == 2
+
+
+def test_a_score_map_tracker_reads_its_lost_rule_from_its_own_held_out_confidence(fit):
+    """Rule ``"confidence"``: no presence model; the pair is chosen on the held-out P(IoU > 0.5), skipped updates lost."""
+    rows, ious, held = _two_losses({"quality": 0.8, "unmeasured": 0.0}, {"quality": 0.1}, low=0.2)
+    rows[30] = {**rows[30], "unmeasured": 1.0}   # a skipped update on the target: lost whatever the rule
+    cues = (("quality", 0.0, 0.0, 1.0),)
+    cal = fit.fit_cues(cues, "confidence", rows, ious, 1.0, held_presence=held)
+    assert cal.presence is None and cal.cues == ("quality",)
+    assert 0.2 < cal.lost_below <= 0.9 and cal.lost_after == 2   # two low frames in a row, as chosen on ``held``
+    assert fit.TRACKERS["nh"][2] == fit.TRACKERS["pf"][2] == fit.TRACKERS["bayes"][2] == "confidence"
+    status = fit.lost_status(replace(cal, lost_below=0.5), [{**r, "quality": 0.8} for r in rows])
+    assert (status == "lost").tolist() == [k == 30 for k in range(80)]
 
 
 def test_the_presence_cues_are_chosen_on_the_held_out_lost_rule(fit):

@@ -40,9 +40,13 @@ estimate's standard deviation in box sizes, and the cues of
 verification ``verify``, ``verify_gap``, ``verify_size_gap``, ``colour`` and
 their running averages, the map's ``score_at``, ``peak_offset`` and
 ``log_scale``; the packaged files use two or three cues each, chosen on *tune*, see
-``scripts/fit_confidence.py``); the status stays ``lost`` when the update was
-skipped (the file's threshold is the probability of such a frame, and it
-starts the detector's re-detection).  Each
+``scripts/fit_confidence.py``), and the status is the calibration's
+(:class:`~vidtrack.filters.calibration.LostRule`): ``lost`` when that
+probability has stayed below the file's ``lost_below`` for its
+``lost_after`` frames in a row, or when the update was skipped (the
+``unmeasured`` scalar).  A ``lost`` status starts the detector's
+re-detection (:mod:`vidtrack.measure.correlation_score_map`) and stops its
+learning.  Each
 exposes (in ``Estimate.stages``) ``{"particles": (N, 3) [cx, cy, weight]}`` in frame
 coordinates after every update.
 """
@@ -56,7 +60,7 @@ import numpy as np
 from scipy.ndimage import map_coordinates
 
 from ..types import LOST, TRACKING, Box, Estimate, Frame, Measurement, ScoreMap
-from .calibration import load_calibration
+from .calibration import LostRule, load_calibration
 from .confidence_cues import RUNNING_CUES, VERIFICATION_CUES, RunningCues, score_map_cues, verification_cues
 from .grid_bayes import gaussian_transition, grid_predict_separable, grid_update_log
 from .normalhedge import NormalHedgeTracker, weight_concentration
@@ -116,6 +120,7 @@ class _CentreBoxFilter:
         self.frame_size_ = None if frame is None else (frame.width, frame.height)
         confidence = getattr(self, "confidence", None)
         self.calibration_ = None if confidence is None else load_calibration(confidence)
+        self.lost_rule_ = None if self.calibration_ is None else LostRule(self.calibration_)
         self.unmeasured_run_ = 0
         self.running_ = RunningCues()
 
@@ -125,7 +130,7 @@ class _CentreBoxFilter:
         estimate = self._update(measurement)
         measured = estimate.status == TRACKING
         self.unmeasured_run_ = 0 if measured else self.unmeasured_run_ + 1
-        cues = {"measured": float(measured),
+        cues = {"measured": float(measured), "unmeasured": float(not measured),
                 "quality": 0.0 if measurement is None else float(getattr(measurement, "quality", 0.0)),
                 "coast": float(np.log1p(self.unmeasured_run_)),
                 "motion": float(np.linalg.norm(estimate.box.center - prior.box.center) / max(self.scale_, 1e-9))}
@@ -144,12 +149,10 @@ class _CentreBoxFilter:
             cues["mass_quality"] = cues["concentration"] * float(np.clip(cues["quality"], 0.0, 1.0))
         estimate = dataclasses.replace(estimate, scalars={**estimate.scalars, **cues})
         if self.calibration_ is not None:
-            # the status stays the filter's own (lost = the update was skipped: the detector's re-detection
-            # follows it); a lost frame's probability is kept below the file's threshold
-            p = self.calibration_.probability(cues)
-            if not measured:
-                p = min(p, 0.99 * self.calibration_.lost_below)
-            estimate = dataclasses.replace(estimate, confidence=p)
+            # P(IoU > 0.5) from the cues; lost after a run of low frames, or at once when the update was skipped
+            lost = self.lost_rule_.lost(cues)
+            estimate = dataclasses.replace(estimate, confidence=self.calibration_.probability(cues),
+                                           status=LOST if lost else TRACKING)
         self.estimate_ = estimate
         return self.estimate_
 
