@@ -367,10 +367,14 @@ def fit_cues(cues, rule: str, rows: list[dict], ious: np.ndarray, C: float, pres
 
     ``"balance"``: the status from a presence model, ``IoU > 0`` on ``presence_cues``, lost below a
     threshold for some frames in a row (:func:`choose_lost_rule` on held-out frames: ``held_presence``,
-    the rows' :func:`held_out_presence` on those cues, when already computed).
+    the rows' :func:`held_out_presence` on those cues, when already computed).  ``"confidence"``: no
+    presence model; lost when ``P(IoU > 0.5)`` itself is below a threshold for some frames in a row, chosen
+    likewise on its held-out values (``held_presence``: the rows' ``P(IoU > 0.5)`` from the fits on the
+    other sequences).  ``"unmeasured"``: the threshold is the probability of a frame whose cues all take
+    their missing values.
     """
     cal = logistic_fit(cues, rows, ious > 0.5, C)
-    if rule == "confidence":   # the rule read from this confidence, held out (``held_presence``, when computed)
+    if rule == "confidence":
         held = held_presence if held_presence is not None else held_out_presence(cue_matrix(cues, rows), rows,
                                                                                    ious, C, above=0.5)
         threshold, lost_after, _, _ = choose_lost_rule(held, ious, run_starts(rows), unmeasured_rows(rows))
