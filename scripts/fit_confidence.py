@@ -166,7 +166,10 @@ def run_starts(rows: list[dict]) -> np.ndarray:
 
 
 def unmeasured_rows(rows: list[dict]) -> np.ndarray:
-    """``(N,)`` bool: the filter measured nothing at all in this row's frame (lost at once, whatever its presence)."""
+    """``(N,)`` bool: the row's ``unmeasured`` scalar is set, so it is lost at once whatever its probability.
+
+    ``mil``: nothing at all was measured (the search left the frame); the score-map trackers: the update was skipped.
+    """
     return np.array([r.get("unmeasured", 0.0) > 0 for r in rows], bool)
 
 

@@ -82,6 +82,8 @@ MIL_GOOD = {"measured": 1.0, "quality": 0.9, "psr": 20.0, "svm_margin": 1.5, "in
 MAP_GOOD = {"measured": 1.0, "quality": 0.9, "psr": 20.0, "concentration": 0.8, "motion": 0.05,
             "mass_quality": 0.72, "coast": 0.0, "verify": 0.6, "verify_mean": 0.6, "colour": 0.7,
             "colour_mean": 0.7, "spread": 0.05}
+MAP_DRIFTED = {**MAP_GOOD, "verify": 0.0, "verify_mean": 0.0, "verify_gap": 1.0, "colour": 0.2, "colour_mean": 0.2,
+               "spread": 1.0}
 COASTING = {"measured": 0.0, "quality": 0.0, "psr": 2.0, "coast": 3.0}
 
 
@@ -100,7 +102,10 @@ def test_packaged_calibrations_match_their_filters_cues(name, cues, good):
     assert not any(rule.lost({**good, "unmeasured": 0.0}) for _ in range(cal.lost_after + 2))
     if name == "mil":   # its presence model reads a coast as lost by itself
         assert cal.presence_probability(COASTING) < cal.lost_below
-    assert LostRule(cal).lost({**COASTING, "unmeasured": 1.0})   # a frame without an update: lost at once
+    else:   # a box off the first frame's appearance, its update made, is lost after the file's run of frames
+        rule = LostRule(cal)
+        drifted = [rule.lost({**MAP_DRIFTED, "unmeasured": 0.0}) for _ in range(cal.lost_after)]
+        assert drifted == [False] * (cal.lost_after - 1) + [True]
 
 
 def _measurement(box: Box, quality: float, psr: float, coverage: float = 0.6) -> Superpixels:
