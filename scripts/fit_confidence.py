@@ -12,16 +12,15 @@ the init frame left out), fits scikit-learn's ``LogisticRegression`` on the
 standardised cues, and writes ``vidtrack/filters/calibration/<tracker>.json``::
 
     python scripts/fit_confidence.py ../shared/data/sequences --trackers mil --seeds 0,1 --passes 2
-    python scripts/fit_confidence.py ../shared/data/sequences --trackers nh,pf,bayes --seeds 0 --passes 2
-    python scripts/fit_confidence.py ../shared/data/sequences --trackers cbt --seeds 0
+    python scripts/fit_confidence.py ../shared/data/sequences --trackers nh,pf,bayes,cbt --seeds 0 --passes 2
 
 ``--passes 2`` refits on the frames of the tracker run with the first fit
 (written to the package, where the tracker reads it, so not with another ``--out``),
 for a tracker whose status feeds back into its search: ``mil``, which searches
 a frame it reports lost as an unmeasured one (``fusion.search_when_lost``), and
-the score-map trackers, whose detector re-detects while they report lost and
-learns only while they report tracking, so their boxes follow their lost rule.
-``cbt``'s ``lost`` is as without the calibration, and one pass suffices.
+the score-map trackers and ``cbt``, whose detector re-detects while they report
+lost and learns only while they report tracking, so their boxes follow their
+lost rule.
 ``--select`` prints the cue selection described below.  ``--cache DIR``
 keeps the frames to refit without tracking again; ``--table`` prints false
 lost and missed loss at every threshold (``mil``: of its lost rule, on the
@@ -39,12 +38,9 @@ the targets they are held to, on frames the fit has not seen.  The
 score-map trackers' ``lost`` is read from the confidence itself: ``P(IoU >
 0.5)`` below ``t`` for ``k`` frames in a row, or a frame whose update was
 skipped (its ``unmeasured`` scalar), with ``(t, k)`` chosen in the same way
-on the held-out confidence.  ``cbt`` keeps its own status (its uncalibrated
-confidence below its ``lost_below``), so its detector's re-detection and its
-boxes are unchanged; its file's threshold is the probability of a frame
-whose cues all take their missing values (nothing of the target seen), and a
-lost frame's probability is kept below it.  The script prints, per tracker, the
-frames used, the coefficients, the tune ROC AUC, expected calibration error,
+on the held-out confidence; ``cbt``'s likewise, a frame it does not measure
+(its uncalibrated confidence below its ``lost_below``) being its skipped
+update.  The script prints, per tracker, the frames used, the coefficients, the tune ROC AUC, expected calibration error,
 false lost and missed loss of the fitted confidence (with the status as the
 filter reports it), and the ROC AUC with each sequence held out
 (:func:`held_out_auc`); ``--select`` also prints the forward selection of
@@ -73,7 +69,7 @@ from vidtrack.eval.datasets import annotated_rows, load_dataset  # noqa: E402
 from vidtrack.filters import cbt as cbt_filter  # noqa: E402
 from vidtrack.filters import mil as mil_filter  # noqa: E402
 from vidtrack.filters import score_trackers  # noqa: E402
-from vidtrack.filters.calibration import Calibration, LostRule, load_calibration, logistic_probability  # noqa: E402
+from vidtrack.filters.calibration import Calibration, LostRule, load_calibration  # noqa: E402
 from vidtrack.recipes import build_tracker  # noqa: E402
 from vidtrack.sources import ImageFolderSource  # noqa: E402
 
@@ -104,7 +100,7 @@ TRACKERS = {
     "nh": (NH_CUES, {"confidence": None}, "confidence"),   # its lost rule steers its detector (fit with --passes 2)
     "pf": (PF_CUES, {"confidence": None}, "confidence"),
     "bayes": (BAYES_CUES, {"confidence": None}, "confidence"),
-    "cbt": (CBT_CUES, {"confidence": None}, "unmeasured"),
+    "cbt": (CBT_CUES, {"confidence": None}, "confidence"),
 }
 #: The cues of the presence model ``P(IoU > 0)`` that decides ``lost`` (rule ``"balance"``), chosen on tune by
 #: forward selection on the cost of the lost rule on held-out frames (:func:`select_presence_cues`,
@@ -126,7 +122,6 @@ THRESHOLD_RULES = {
     "confidence": "P(IoU > 0.5) below lost_below for lost_after frames in a row, or the update skipped; the pair is "
                   "the argmin of max(false_lost / 0.15, missed_loss / 0.02) on the tune frames, each sequence held out "
                   "of the fit",
-    "unmeasured": "just above the probability of a frame without an update (the filter keeps its status: lost = the update was skipped)",
 }
 
 
@@ -382,16 +377,13 @@ def fit_cues(cues, rule: str, rows: list[dict], ious: np.ndarray, C: float, pres
                                                                                    ious, C, above=0.5)
         threshold, lost_after, _, _ = choose_lost_rule(held, ious, run_starts(rows), unmeasured_rows(rows))
         return replace(cal, lost_below=threshold, lost_after=lost_after)
-    if rule == "balance":
-        if held_presence is None:
-            held_presence = held_out_presence(cue_matrix(presence_cues, rows), rows, ious, C)
-        threshold, lost_after, _, _ = choose_lost_rule(held_presence, ious, run_starts(rows), unmeasured_rows(rows))
-        return replace(cal, lost_below=threshold, lost_after=lost_after,
-                       presence=logistic_fit(presence_cues, rows, ious > 0, C, threshold))
-    # the probability of a frame whose every cue takes its missing value, rounded up
-    unmeasured = float(logistic_probability(np.clip(cal.fill, cal.lower, cal.upper), cal.mean, cal.scale, cal.coef,
-                                            cal.intercept))
-    return replace(cal, lost_below=float(np.ceil(unmeasured * 1000.0 + 1e-9) / 1000.0))
+    if rule != "balance":
+        raise ValueError(f"unknown threshold rule {rule!r}")
+    if held_presence is None:
+        held_presence = held_out_presence(cue_matrix(presence_cues, rows), rows, ious, C)
+    threshold, lost_after, _, _ = choose_lost_rule(held_presence, ious, run_starts(rows), unmeasured_rows(rows))
+    return replace(cal, lost_below=threshold, lost_after=lost_after,
+                   presence=logistic_fit(presence_cues, rows, ious > 0, C, threshold))
 
 
 def main(argv=None) -> int:
@@ -439,8 +431,7 @@ def fit_pass(name, sequences, seeds, args, *, calibrated: bool):
         saved = json.loads(cache.read_text(encoding="utf-8"))
         rows, ious = saved["rows"], np.array(saved["ious"])
         wanted = {c[0] for c in TRACKERS[name][0] + PRESENCE_CUES.get(name, ())}
-        if TRACKERS[name][2] != "unmeasured":   # its lost rule also reads whether anything was measured
-            wanted.add("unmeasured")
+        wanted.add("unmeasured")   # the lost rule also reads whether anything was measured
         missing = sorted(c for c in wanted if not any(c in r for r in rows))
         if missing:   # frames of an older tracker: they would be fitted on the fill values
             raise SystemExit(f"fit_confidence: {cache} has no frame with {', '.join(missing)}; delete it to collect again")
@@ -456,12 +447,7 @@ def fit_pass(name, sequences, seeds, args, *, calibrated: bool):
         held = held_out_presence(cue_matrix(TRACKERS[name][0], rows), rows, ious, args.C, above=0.5)
     cal = fit(name, rows, ious, args.C, held)
     p = np.array([cal.probability(r) for r in rows])
-    if TRACKERS[name][2] == "unmeasured":   # as the filter reports it: its own status, a lost frame kept low
-        kept = np.array([r.get("measured", 1.0) > 0 for r in rows])
-        p = np.where(kept, p, np.minimum(p, 0.99 * cal.lost_below))
-        status = np.where(kept, conf_metrics.TRACKING, conf_metrics.LOST)
-    else:
-        status = lost_status(cal, rows)
+    status = lost_status(cal, rows)
     m = conf_metrics.confidence_metrics(ious, p, status)
     weights = ", ".join(f"{c} {w:+.2f}" for c, w in zip(cal.cues, cal.coef))
     lost = f"lost below {cal.lost_below:.3f}" + (f" for {cal.lost_after} frame(s)" if cal.lost_after > 1 else "")

@@ -6,11 +6,12 @@ import numpy as np
 import pytest
 
 from vidtrack.errors import UsageError
+from vidtrack.filters import cbt as cbt_filter
 from vidtrack.filters import mil as mil_filter
 from vidtrack.filters import score_trackers
 from vidtrack.filters.calibration import Calibration, LostRule, load_calibration, logistic_probability
 from vidtrack.filters.mil import KalmanConfig, MILKalmanFilter
-from vidtrack.types import LOST, TRACKING, Box, ScoreMap, Superpixels
+from vidtrack.types import LOST, TRACKING, Box, Detections, ScoreMap, Superpixels
 
 
 def _calibration(**changes) -> Calibration:
@@ -85,13 +86,16 @@ MAP_GOOD = {"measured": 1.0, "quality": 0.9, "psr": 20.0, "concentration": 0.8, 
 MAP_DRIFTED = {**MAP_GOOD, "verify": 0.0, "verify_mean": 0.0, "verify_gap": 1.0, "colour": 0.2, "colour_mean": 0.2,
                "spread": 1.0}
 COASTING = {"measured": 0.0, "quality": 0.0, "psr": 2.0, "coast": 3.0}
+CBT_GOOD = {**MAP_GOOD, "mode_mass": 0.9}
+CBT_DRIFTED = {**MAP_DRIFTED, "mode_mass": 0.7}   # and the posterior's mode holds less of its mass
 
 
-@pytest.mark.parametrize(("name", "cues", "good"), [("mil", mil_filter.CUES, MIL_GOOD),
-                                                    ("nh", score_trackers.CUES, MAP_GOOD),
-                                                    ("pf", score_trackers.CUES, MAP_GOOD),
-                                                    ("bayes", score_trackers.CUES, MAP_GOOD)])
-def test_packaged_calibrations_match_their_filters_cues(name, cues, good):
+@pytest.mark.parametrize(("name", "cues", "good", "drifted"), [("mil", mil_filter.CUES, MIL_GOOD, None),
+                                                               ("nh", score_trackers.CUES, MAP_GOOD, MAP_DRIFTED),
+                                                               ("pf", score_trackers.CUES, MAP_GOOD, MAP_DRIFTED),
+                                                               ("bayes", score_trackers.CUES, MAP_GOOD, MAP_DRIFTED),
+                                                               ("cbt", cbt_filter.CUES, CBT_GOOD, CBT_DRIFTED)])
+def test_packaged_calibrations_match_their_filters_cues(name, cues, good, drifted):
     cal = load_calibration(name)
     assert set(cal.cues) <= {c[0] for c in cues}
     assert cal.presence is None or set(cal.presence.cues) <= {c[0] for c in cues}
@@ -104,8 +108,8 @@ def test_packaged_calibrations_match_their_filters_cues(name, cues, good):
         assert cal.presence_probability(COASTING) < cal.lost_below
     else:   # a box off the first frame's appearance, its update made, is lost after the file's run of frames
         rule = LostRule(cal)
-        drifted = [rule.lost({**MAP_DRIFTED, "unmeasured": 0.0}) for _ in range(cal.lost_after)]
-        assert drifted == [False] * (cal.lost_after - 1) + [True]
+        status = [rule.lost({**drifted, "unmeasured": 0.0}) for _ in range(cal.lost_after)]
+        assert status == [False] * (cal.lost_after - 1) + [True]
 
 
 def _measurement(box: Box, quality: float, psr: float, coverage: float = 0.6) -> Superpixels:
@@ -182,3 +186,30 @@ def test_score_map_filters_report_lost_by_their_calibrated_confidence(cls, monke
     raw = cls(rng=np.random.default_rng(0))
     raw.initialize(Box.from_center(*centre, 20.0, 20.0))
     assert all(raw.update(_map_with_quality(raw.predict().box.center, 0.4)).status == TRACKING for _ in range(3))
+
+
+def test_cbt_reports_lost_by_its_calibrated_confidence(monkeypatch):
+    # P(IoU > 0.5) rising with cbt's own confidence; lost below 0.3 for 2 frames in a row
+    cal = Calibration(cues=("raw_confidence",), mean=np.array([0.5]), scale=np.array([0.1]), coef=np.array([4.0]),
+                      intercept=0.0, fill=np.array([0.0]), lower=np.array([0.0]), upper=np.array([1.0]),
+                      lost_below=0.3, lost_after=2)
+    monkeypatch.setattr(cbt_filter, "load_calibration", lambda name: cal)
+
+    def detection(f, score):   # one detection at the predicted centre
+        return Detections(f.predict().box.center[None, :], np.array([score]))
+
+    f = cbt_filter.CBTFilter(confidence="test")
+    f.initialize(Box.from_center(100.0, 100.0, 20.0, 20.0))
+    good = f.update(detection(f, 0.9))
+    assert good.status == TRACKING and good.confidence == pytest.approx(cal.probability(good.scalars))
+    # score 0.4: above cbt's own lost_below (0.2), so the frame is measured, but P(IoU > 0.5) is below 0.3
+    weak = [f.update(detection(f, 0.4)) for _ in range(3)]
+    assert all(w.scalars["measured"] == 1.0 and w.confidence < cal.lost_below for w in weak)
+    assert [w.status for w in weak] == [TRACKING, LOST, LOST]
+    assert f.update(detection(f, 0.9)).status == TRACKING
+    unmeasured = f.update(detection(f, 0.1))   # cbt's own confidence under its lost_below: lost at once
+    assert unmeasured.status == LOST and unmeasured.scalars["unmeasured"] == 1.0
+    # uncalibrated: lost only below its own lost_below
+    raw = cbt_filter.CBTFilter(confidence=None)
+    raw.initialize(Box.from_center(100.0, 100.0, 20.0, 20.0))
+    assert all(raw.update(detection(raw, 0.4)).status == TRACKING for _ in range(3))

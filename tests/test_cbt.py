@@ -231,8 +231,7 @@ def test_cbt_filter_without_detections_is_lost_and_coasts(moving_target):
     f.initialize(boxes[0], frames[0])
     f.predict()
     est = f.update(Detections(np.zeros((0, 2)), np.zeros(0)))
-    assert est.status == "lost" and est.scalars["raw_confidence"] == 0.0
-    assert est.confidence < f.calibration_.lost_below   # the calibrated probability stays below lost
+    assert est.status == "lost" and est.scalars["raw_confidence"] == 0.0 and est.scalars["unmeasured"] == 1.0
     assert np.linalg.norm(est.box.center - boxes[0].center) < 3.0
 
 

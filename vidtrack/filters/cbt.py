@@ -28,7 +28,7 @@ from ..channels import (ChannelBasis, conditional_from_counts, current_marginal,
                         position_conditional, random_walk_displacement, shift_tensor)
 from ..errors import UsageError
 from ..types import LOST, TRACKING, Box, Detections, Estimate, Frame, Measurement
-from .calibration import load_calibration
+from .calibration import LostRule, load_calibration
 from .cbt_model import CBTModel
 from .confidence_cues import RUNNING_CUES, VERIFICATION_CUES, RunningCues, verification_cues
 from .channels import mean_field_update, product_likelihood
@@ -113,11 +113,16 @@ class CBTFilter:
     the box overlaps the target by more than 0.5
     (:mod:`vidtrack.filters.calibration`) from the cues :data:`CUES`,
     among them the first-frame verification of the box
-    (:mod:`vidtrack.filters.confidence_cues`); it never changes the status
-    or the boxes.  While lost,
-    the history is reset to the current position (``coast_when_lost``: the
-    learned velocity is forgotten so the box does not run off during an
-    occlusion) and nothing is learned.
+    (:mod:`vidtrack.filters.confidence_cues`), and the reported status is
+    the calibration's (:class:`~vidtrack.filters.calibration.LostRule`):
+    ``lost`` once that probability has stayed below the file's
+    ``lost_below`` for its ``lost_after`` frames in a row, or at once on a
+    frame the filter does not measure (its own confidence below
+    ``lost_below``, the ``unmeasured`` cue).  The reported ``lost`` widens
+    the detector's search and stops its learning.  On a frame it does not
+    measure the box is the prediction, the history is reset to the current
+    position (``coast_when_lost``: the learned velocity is forgotten so the
+    box does not run off during an occlusion) and nothing is learned.
 
     Parameters
     ----------
@@ -159,8 +164,8 @@ class CBTFilter:
         Weigh detections relative to the frame's best score.
     confidence
         Name of the calibrated confidence (``vidtrack/filters/calibration/<name>.json``, from the cues
-        :data:`CUES`; ``"cbt"`` was fitted on the correlation filter's detections); None: the confidence
-        above.  Either way the status follows the confidence above.
+        :data:`CUES`; ``"cbt"`` was fitted on the correlation filter's detections, and its lost rule gives
+        the status); None: the confidence above, and ``lost`` below ``lost_below``.
     """
 
     order: int = 2
@@ -219,6 +224,7 @@ class CBTFilter:
         self.since_learn_ = 0
         self.prior_box_ = box
         self.calibration_ = None if self.confidence is None else load_calibration(self.confidence)
+        self.lost_rule_ = None if self.calibration_ is None else LostRule(self.calibration_)
         self.unmeasured_run_ = 0
         self.running_ = RunningCues()
         self.estimate_ = Estimate(box, None, 1.0, TRACKING, {})
@@ -301,6 +307,8 @@ class CBTFilter:
                 self.W_ = [diagonal_history(current_marginal(W), self.order) for W in self.W_]
         box = self._box_at(centre) if status == TRACKING else self.prior_box_  # lost: the prediction
         confidence = self._calibrated(measurement, box, confidence, status, scalars)
+        if self.lost_rule_ is not None:   # the reported status: the calibration's lost rule
+            status = LOST if self.lost_rule_.lost(scalars) else TRACKING
         self.estimate_ = Estimate(box, None, confidence, status, scalars)
         return self.estimate_
 
@@ -308,14 +316,13 @@ class CBTFilter:
                     scalars: dict[str, float]) -> float:
         """Add the cues :data:`CUES` to ``scalars``; the calibrated probability (``raw`` without a calibration).
 
-        The status is never changed (it steers the filter and the detector's
-        re-detection); a ``lost`` frame's probability is kept below the
-        calibration's ``lost_below``.
+        ``status`` is the filter's own (its uncalibrated confidence below
+        ``lost_below``): a frame it does not measure sets the ``unmeasured`` cue.
         """
         measured = status == TRACKING
         self.unmeasured_run_ = 0 if measured else self.unmeasured_run_ + 1
         stages = getattr(measurement, "stages", None) or {}
-        scalars.update(measured=float(measured), raw_confidence=raw,
+        scalars.update(measured=float(measured), unmeasured=float(not measured), raw_confidence=raw,
                        quality=0.0 if measurement is None else float(getattr(measurement, "quality", 0.0)),
                        coast=float(np.log1p(self.unmeasured_run_)),
                        motion=float(np.linalg.norm(box.center - self.estimate_.box.center) / max(self.scale_, 1e-9)))
@@ -325,8 +332,7 @@ class CBTFilter:
         scalars.update(self.running_.update(scalars))
         if self.calibration_ is None:
             return raw
-        p = self.calibration_.probability(scalars)
-        return p if measured else min(p, 0.99 * self.calibration_.lost_below)
+        return self.calibration_.probability(scalars)
 
     def _learn(self) -> None:
         """Online covariance estimate (eq. 11) of the displacement model from the decoded centres."""
