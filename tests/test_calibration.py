@@ -188,6 +188,24 @@ def test_score_map_filters_report_lost_by_their_calibrated_confidence(cls, monke
     assert all(raw.update(_map_with_quality(raw.predict().box.center, 0.4)).status == TRACKING for _ in range(3))
 
 
+@pytest.mark.parametrize("cls", [score_trackers.NormalHedgeBoxFilter, score_trackers.ParticleBoxFilter,
+                                 score_trackers.GridBayesBoxFilter])
+def test_a_lost_score_map_filter_restarts_at_a_confident_re_detection(cls):
+    start, found = np.array([100.0, 100.0]), np.array([160.0, 110.0])   # the target reappears 3 boxes away
+    ends = {}
+    for reseed_above in (None, 0.5):
+        f = cls(rng=np.random.default_rng(0), reseed_above=reseed_above)
+        f.initialize(Box.from_center(*start, 20.0, 20.0))
+        assert f.update(_map_with_quality(f.predict().box.center, 0.1)).status == LOST   # skipped: lost
+        f.predict()
+        weak = f.update(_map_with_quality(found, 0.4))   # below reseed_above: an ordinary update
+        assert np.linalg.norm(weak.box.center - start) < 15.0
+        f.update(_map_with_quality(f.predict().box.center, 0.1))
+        f.predict()
+        ends[reseed_above] = f.update(_map_with_quality(found, 0.9)).box.center
+    assert np.linalg.norm(ends[0.5] - found) < 2.0
+    assert np.linalg.norm(ends[None] - found) > 20.0
+
 def test_cbt_reports_lost_by_its_calibrated_confidence(monkeypatch):
     # P(IoU > 0.5) rising with cbt's own confidence; lost below 0.3 for 2 frames in a row
     cal = Calibration(cues=("raw_confidence",), mean=np.array([0.5]), scale=np.array([0.1]), coef=np.array([4.0]),

@@ -46,7 +46,11 @@ probability has stayed below the file's ``lost_below`` for its
 ``lost_after`` frames in a row, or when the update was skipped (the
 ``unmeasured`` scalar).  A ``lost`` status starts the detector's
 re-detection (:mod:`vidtrack.measure.correlation_score_map`) and stops its
-learning.  Each
+learning.  With ``reseed_above`` set (the ``nh`` and ``pf`` recipes), a
+filter whose prior is lost restarts at the map's peak when the map's quality
+reaches it and the prior's own box scores under :data:`RESEED_SCORE` of the
+peak: the re-detection has found the target where the filter's actions or
+particles, spread around the prior, would not reach it.  Each
 exposes (in ``Estimate.stages``) ``{"particles": (N, 3) [cx, cy, weight]}`` in frame
 coordinates after every update.
 """
@@ -94,6 +98,16 @@ CUES = (
 )
 
 
+#: A lost filter restarts at a confident re-detection only if its own box scores below this fraction of the peak.
+RESEED_SCORE = 0.5
+
+
+def map_peak(smap: ScoreMap) -> np.ndarray:
+    """The centre ``[cx, cy]`` of the map's best box."""
+    row, col = np.unravel_index(int(np.argmax(smap.scores)), smap.scores.shape)
+    return smap.centers()[row, col]
+
+
 def _usable(measurement: Measurement | None, lost_below: float) -> bool:
     return (isinstance(measurement, ScoreMap) and measurement.scores.size > 0
             and float(measurement.quality) >= lost_below)
@@ -104,6 +118,7 @@ class _CentreBoxFilter:
 
     lost_below: float
     radius: float
+    reseed_above: float | None
 
     def _box(self, centre: np.ndarray) -> Box:
         return Box.from_center(float(centre[0]), float(centre[1]), *self.size_)
@@ -125,8 +140,17 @@ class _CentreBoxFilter:
         self.running_ = RunningCues()
 
     def update(self, measurement: Measurement | None) -> Estimate:
-        """The filter's own update, then the confidence and status from the cues (see the module docstring)."""
+        """The filter's own update, then the confidence and status from the cues (see the module docstring).
+
+        A lost prior, a map of quality at least ``reseed_above`` (the
+        detector's re-detection found the target) on which the prior's own
+        box scores less than half the peak: the filter restarts at the map's
+        peak before its update.
+        """
         prior = self.estimate_
+        if (self.reseed_above is not None and prior.status == LOST and _usable(measurement, self.reseed_above)
+                and score_at_centres(measurement, prior.box.center[None, :])[0] < RESEED_SCORE * measurement.scores.max()):
+            self._reseed(self._keep_in_frame(map_peak(measurement)))
         estimate = self._update(measurement)
         measured = estimate.status == TRACKING
         self.unmeasured_run_ = 0 if measured else self.unmeasured_run_ + 1
@@ -200,8 +224,10 @@ class NormalHedgeBoxFilter(_CentreBoxFilter):
                  clip: tuple[float, float] = (-1.0, 1.0), outside_score: float = -1.0, lost_below: float = 0.35,
                  radius: float = 0.15, velocity_gain: float = 0.2, coast_damping: float = 0.5,
                  window: float = 0.0, prune_below: float = 0.3,
-                 rng: np.random.Generator | int | None = None, confidence: str | None = None) -> None:
+                 rng: np.random.Generator | int | None = None, confidence: str | None = None,
+                 reseed_above: float | None = None) -> None:
         self.confidence = confidence
+        self.reseed_above = reseed_above
         self.window = window
         self.prune_below = prune_below
         self.velocity_gain = velocity_gain
@@ -226,6 +252,13 @@ class NormalHedgeBoxFilter(_CentreBoxFilter):
         self.velocity_ = np.zeros(2)
         self.last_centre_ = box.center.copy()
         self.stages_ = {}
+
+    def _reseed(self, centre: np.ndarray) -> None:
+        """Restart the actions around ``centre`` (zero regret, no velocity)."""
+        sigma = self.sigma_star * self.scale_
+        self.core_.initialize(centre + sigma * self.core_.rng_.standard_normal((self.n_actions, 2)))
+        self.velocity_ = np.zeros(2)
+        self.last_centre_ = np.asarray(centre, float).copy()
 
     def _cov(self, states: np.ndarray, weights: np.ndarray) -> np.ndarray:
         return weighted_mean_cov(states, weights)[1] + np.eye(2) * 1e-6
@@ -304,8 +337,10 @@ class ParticleBoxFilter(_CentreBoxFilter):
 
     def __init__(self, n_particles: int = 100, sigma_d: float = 0.2, sigma_s: float = 0.1,
                  outside_score: float = 0.0, lost_below: float = 0.35, radius: float = 0.15,
-                 rng: np.random.Generator | int | None = None, confidence: str | None = None) -> None:
+                 rng: np.random.Generator | int | None = None, confidence: str | None = None,
+                 reseed_above: float | None = None) -> None:
         self.confidence = confidence
+        self.reseed_above = reseed_above
         self.n_particles = n_particles
         self.sigma_d = sigma_d
         self.sigma_s = sigma_s
@@ -328,6 +363,10 @@ class ParticleBoxFilter(_CentreBoxFilter):
         self.core_.initialize(np.tile(box.center, (self.n_particles, 1)))
         self.estimate_ = Estimate(box, np.eye(2) * step ** 2, 1.0, TRACKING)
         self.stages_ = {}
+
+    def _reseed(self, centre: np.ndarray) -> None:
+        """Restart every particle at ``centre``."""
+        self.core_.initialize(np.tile(centre, (self.n_particles, 1)))
 
     def predict(self) -> Estimate:
         # The SIR step propagates and weights together; the prior's mean is the
@@ -384,8 +423,9 @@ class GridBayesBoxFilter(_CentreBoxFilter):
     def __init__(self, cell: float = 0.1, sigma_d: float = 0.1, sigma_s: float = 0.1,
                  outside_score: float = 0.0, lost_below: float = 0.35, radius: float = 0.15,
                  min_spacing: float = 2.0, extent: float = 2.0, rng: np.random.Generator | int | None = None,
-                 confidence: str | None = None) -> None:
+                 confidence: str | None = None, reseed_above: float | None = None) -> None:
         self.confidence = confidence
+        self.reseed_above = reseed_above
         self.cell = cell
         self.min_spacing = min_spacing
         self.extent = extent
@@ -422,6 +462,13 @@ class GridBayesBoxFilter(_CentreBoxFilter):
         self.p_ = grid_predict_separable(p, self.transitions_)
         self.estimate_ = Estimate(box, np.eye(2) * sigma ** 2, 1.0, TRACKING)
         self.stages_ = {}
+
+    def _reseed(self, centre: np.ndarray) -> None:
+        """Restart the grid on ``centre``: all the probability in its cell, spread by one random-walk step."""
+        self._place(self._corner_at(centre))
+        p = np.zeros(self.shape_)
+        p[self.shape_[0] // 2, self.shape_[1] // 2] = 1.0
+        self.p_ = grid_predict_separable(p, self.transitions_)
 
     def _recentre(self) -> None:
         """Move the window by whole cells so the posterior mean is at its centre (mass outside dropped)."""

@@ -27,6 +27,8 @@ from ..tracker import Recipe, Tracker
 
 Detector = Literal["cf", "ncc", "face"]
 DETECTOR_DOC = "the score map: cf (correlation filter), ncc (grey template) or face (OpenCV's Haar cascade)"
+RESEED_DOC = ("while lost, the tracker restarts at the map's peak when the map's quality reaches this and its "
+              "own box scores under half the peak (none: never)")
 CF_DOC = "the correlation-filter detector (detector cf): its filter, scale search, learning and re-detection"
 
 
@@ -38,6 +40,7 @@ class NormalHedgeConfig:
     n_actions: int = option(100, "N, the number of actions (box centres) NormalHedge weighs")
     alpha: float = option(0.4, "fraction of the actions re-sampled when their weight vanishes")
     sigma_star: float = option(0.25, "random-walk step of a re-sampled action, in box sizes")
+    reseed_above: float | None = option(None, RESEED_DOC)
     confidence: str | None = option("nh", "calibrated confidence: vidtrack/filters/calibration/<name>.json "
                                            "(none: concentration times quality)")
     cf: CorrelationDetectorConfig = option(CorrelationDetectorConfig(), CF_DOC)
@@ -50,6 +53,7 @@ class ParticleConfig:
     detector: Detector = option("cf", DETECTOR_DOC)
     n_particles: int = option(100, "number of particles")
     sigma_d: float = option(0.2, "random-walk step of a particle per frame, in box sizes")
+    reseed_above: float | None = option(None, RESEED_DOC)
     confidence: str | None = option("pf", "calibrated confidence: vidtrack/filters/calibration/<name>.json "
                                            "(none: concentration times quality)")
     cf: CorrelationDetectorConfig = option(CorrelationDetectorConfig(), CF_DOC)
@@ -61,6 +65,7 @@ class GridBayesConfig:
 
     detector: Detector = option("cf", DETECTOR_DOC)
     sigma_d: float = option(0.1, "random-walk step per frame, in box sizes")
+    reseed_above: float | None = option(None, RESEED_DOC)
     confidence: str | None = option("bayes", "calibrated confidence: vidtrack/filters/calibration/<name>.json "
                                            "(none: concentration times quality)")
     cf: CorrelationDetectorConfig = option(CorrelationDetectorConfig(), CF_DOC)
@@ -82,29 +87,34 @@ def build_nh(config: NormalHedgeConfig, seed=None) -> Tracker:
     return _tracker(config, NormalHedgeBoxFilter(n_actions=config.n_actions, alpha=config.alpha,
                                                           sigma_star=config.sigma_star,
                                                           confidence=_calibrated(config),
+                                                          reseed_above=config.reseed_above,
                                                           rng=np.random.default_rng(seed)))
 
 
 def build_pf(config: ParticleConfig, seed=None) -> Tracker:
     return _tracker(config, ParticleBoxFilter(n_particles=config.n_particles, sigma_d=config.sigma_d,
                                                        rng=np.random.default_rng(seed),
+                                                       reseed_above=config.reseed_above,
                                                        confidence=_calibrated(config)))
 
 
 def build_bayes(config: GridBayesConfig, seed=None) -> Tracker:
     return _tracker(config, GridBayesBoxFilter(sigma_d=config.sigma_d, rng=np.random.default_rng(seed),
+                                                        reseed_above=config.reseed_above,
                                                         confidence=_calibrated(config)))
 
 
-# nh and bayes on the correlation-filter map: more actions, a shorter regret memory, wider
-# re-sampling; a wider random walk (see vidtrack.filters.score_trackers)
-NH = NormalHedgeConfig(n_actions=300, alpha=0.6, sigma_star=0.35)
+# On the correlation-filter map: nh keeps more actions, a shorter regret memory and re-samples wider,
+# bayes walks wider; nh and pf restart at a confident re-detection while lost, which the exact grid of
+# bayes (two box sizes around its estimate) does not need (see vidtrack.filters.score_trackers)
+NH = NormalHedgeConfig(n_actions=300, alpha=0.6, sigma_star=0.35, reseed_above=0.7)
+PF = ParticleConfig(reseed_above=0.7)
 BAYES = GridBayesConfig(sigma_d=0.15)
 
 RECIPES = {
     "nh": Recipe("SMC NormalHedge on a sliding-detector score map (Chaudhuri, Freund & Hsu 2010)", build_nh, NH),
     "pf": Recipe("SIR particle filter on a sliding-detector score map (NormalHedge paper's comparator)",
-                 build_pf, ParticleConfig()),
+                 build_pf, PF),
     "bayes": Recipe("exact grid Bayes filter on a sliding-detector score map (NormalHedge paper's comparator)",
                     build_bayes, BAYES),
     "nh-face": Recipe("nh on OpenCV's Haar face-detector score map (the motivating example of Chaudhuri, "
