@@ -81,9 +81,10 @@ OUT = Path(__file__).resolve().parents[1] / "vidtrack" / "filters" / "calibratio
 #: flag, the colour likelihood and the verification gap (0.945 on the packaged tracker's frames; the
 #: quality, PSR and inlier coverage 0.914; all of :data:`~vidtrack.filters.mil.CUES` 0.929).  The score-map
 #: trackers and cbt, likewise, on the uncalibrated tracker's frames.  nh: the running colour likelihood and the
-#: verification gap (0.938; with the size gap as well 0.928, the uncalibrated confidence 0.764, all of
-#: :data:`~vidtrack.filters.score_trackers.CUES` 0.910); pf: the running colour likelihood, the verification
-#: gap and the particles' spread (0.942; 0.684, all 0.777); bayes: the running verification and colour
+#: verification gap (0.940; with the size gap as well 0.930, the uncalibrated confidence 0.767, all of
+#: :data:`~vidtrack.filters.score_trackers.CUES` 0.908; selected before nh restarted at a re-detection, the
+#: selection re-run on these frames would add the map's quality, 0.947); pf: the running colour likelihood, the
+#: verification gap and the particles' spread (0.946; 0.720, all 0.854); bayes: the running verification and colour
 #: likelihood and the spread (0.950; 0.684, all 0.913); cbt: the running colour likelihood, the running
 #: verification and the mode mass (0.923; the uncalibrated confidence 0.654, all of
 #: :data:`~vidtrack.filters.cbt.CUES` 0.866).
