@@ -1,8 +1,8 @@
 """Fit the calibrated confidence of ``mil``, ``nh``, ``pf``, ``bayes`` and ``cbt`` on the *tune* split.
 
 Runs each tracker (the score-map trackers and ``cbt`` with their calibration
-switched off, so the cues are those of the uncalibrated tracker, and the
-score-map trackers' second pass with the first pass's file; ``mil`` as
+switched off, so the cues are those of the uncalibrated tracker, and their
+second pass with the first pass's file; ``mil`` as
 packaged, with its packaged calibration, which decides whether it measures the
 appearance verification and, through ``lost``, where it searches) over the *tune* sequences of
 ``../shared/data/sequences`` at the given seeds, records every frame's cues
@@ -40,8 +40,8 @@ score-map trackers' ``lost`` is read from the confidence itself: ``P(IoU >
 skipped (its ``unmeasured`` scalar), with ``(t, k)`` chosen in the same way
 on the held-out confidence; ``cbt``'s likewise, a frame it does not measure
 (its uncalibrated confidence below its ``lost_below``) being its skipped
-update.  The script prints, per tracker, the frames used, the coefficients, the tune ROC AUC, expected calibration error,
-false lost and missed loss of the fitted confidence (with the status as the
+update.  The script prints, per tracker, the frames used, the coefficients,
+the tune ROC AUC, expected calibration error, false lost and missed loss of the fitted confidence (with the status as the
 filter reports it), and the ROC AUC with each sequence held out
 (:func:`held_out_auc`); ``--select`` also prints the forward selection of
 cues on that held-out figure (:func:`select_cues`), which chose the packaged
@@ -82,8 +82,8 @@ OUT = Path(__file__).resolve().parents[1] / "vidtrack" / "filters" / "calibratio
 #: quality, PSR and inlier coverage 0.914; all of :data:`~vidtrack.filters.mil.CUES` 0.929).  The score-map
 #: trackers and cbt, likewise, on the uncalibrated tracker's frames.  nh: the running colour likelihood and the
 #: verification gap (0.940; with the size gap as well 0.930, the uncalibrated confidence 0.767, all of
-#: :data:`~vidtrack.filters.score_trackers.CUES` 0.908; selected before nh restarted at a re-detection, the
-#: selection re-run on these frames would add the map's quality, 0.947); pf: the running colour likelihood, the
+#: :data:`~vidtrack.filters.score_trackers.CUES` 0.908; ``--select`` on these frames goes on to the map's
+#: quality, 0.947, a third cue the file does not use); pf: the running colour likelihood, the
 #: verification gap and the particles' spread (0.946; 0.720, all 0.854); bayes: the running verification and colour
 #: likelihood and the spread (0.950; 0.684, all 0.913); cbt: the running colour likelihood, the running
 #: verification and the mode mass (0.923; the uncalibrated confidence 0.654, all of
@@ -369,8 +369,7 @@ def fit_cues(cues, rule: str, rows: list[dict], ious: np.ndarray, C: float, pres
     the rows' :func:`held_out_presence` on those cues, when already computed).  ``"confidence"``: no
     presence model; lost when ``P(IoU > 0.5)`` itself is below a threshold for some frames in a row, chosen
     likewise on its held-out values (``held_presence``: the rows' ``P(IoU > 0.5)`` from the fits on the
-    other sequences).  ``"unmeasured"``: the threshold is the probability of a frame whose cues all take
-    their missing values.
+    other sequences).
     """
     cal = logistic_fit(cues, rows, ious > 0.5, C)
     if rule == "confidence":

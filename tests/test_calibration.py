@@ -188,23 +188,49 @@ def test_score_map_filters_report_lost_by_their_calibrated_confidence(cls, monke
     assert all(raw.update(_map_with_quality(raw.predict().box.center, 0.4)).status == TRACKING for _ in range(3))
 
 
+def _two_peak_map(near, far, near_peak: float, quality: float) -> ScoreMap:
+    """A map (20 x 20 boxes, 1 px cells) covering ``near`` and ``far``: peaks ``near_peak`` and 1 there."""
+    lo = np.minimum(near, far) - 25.0
+    hi = np.maximum(near, far) + 25.0
+    shape = (int(hi[1] - lo[1]) + 1, int(hi[0] - lo[0]) + 1)
+    smap = ScoreMap(np.zeros(shape), (lo[0] - 10.0, lo[1] - 10.0), 1.0, (20.0, 20.0))
+    c = smap.centers()
+
+    def bump(at):
+        return np.exp(-((c[..., 0] - at[0]) ** 2 + (c[..., 1] - at[1]) ** 2) / 18.0)
+
+    return ScoreMap(np.maximum(near_peak * bump(near), bump(far)), smap.origin, 1.0, (20.0, 20.0), quality=quality)
+
+
 @pytest.mark.parametrize("cls", [score_trackers.NormalHedgeBoxFilter, score_trackers.ParticleBoxFilter,
                                  score_trackers.GridBayesBoxFilter])
 def test_a_lost_score_map_filter_restarts_at_a_confident_re_detection(cls):
     start, found = np.array([100.0, 100.0]), np.array([160.0, 110.0])   # the target reappears 3 boxes away
-    ends = {}
-    for reseed_above in (None, 0.5):
+
+    def filter_(reseed_above, *, lost: bool = True):
         f = cls(rng=np.random.default_rng(0), reseed_above=reseed_above)
         f.initialize(Box.from_center(*start, 20.0, 20.0))
-        assert f.update(_map_with_quality(f.predict().box.center, 0.1)).status == LOST   # skipped: lost
+        quality = 0.1 if lost else 0.9   # a skipped update is lost
+        assert f.update(_map_with_quality(f.predict().box.center, quality)).status == (LOST if lost else TRACKING)
         f.predict()
-        weak = f.update(_map_with_quality(found, 0.4))   # below reseed_above: an ordinary update
-        assert np.linalg.norm(weak.box.center - start) < 15.0
-        f.update(_map_with_quality(f.predict().box.center, 0.1))
-        f.predict()
-        ends[reseed_above] = f.update(_map_with_quality(found, 0.9)).box.center
-    assert np.linalg.norm(ends[0.5] - found) < 2.0
-    assert np.linalg.norm(ends[None] - found) > 20.0
+        return f
+
+    def distance(f, smap):
+        return np.linalg.norm(f.update(smap).box.center - found)
+
+    # a confident map whose peak the prior's box misses: the lost filter restarts there, and only then
+    assert distance(filter_(0.5), _map_with_quality(found, 0.9)) < 2.0
+    assert distance(filter_(None), _map_with_quality(found, 0.9)) > 20.0
+    # not below reseed_above, not while tracking, not when the prior's own box scores half the peak or more
+    assert distance(filter_(0.5), _map_with_quality(found, 0.4)) > 45.0
+    assert distance(filter_(0.5, lost=False), _map_with_quality(found, 0.9)) > 45.0
+    assert distance(filter_(0.5), _two_peak_map(start, found, 0.8, 0.9)) > 45.0
+    assert distance(filter_(0.5), _two_peak_map(start, found, 0.3, 0.9)) < 2.0
+    # a map too weak for the update (quality under lost_below, 0.35) restarts nothing, whatever reseed_above
+    f = filter_(0.2)
+    f.update(_map_with_quality(found, 0.3))
+    assert np.linalg.norm(f.predict().box.center - start) < 15.0
+
 
 def test_cbt_reports_lost_by_its_calibrated_confidence(monkeypatch):
     # P(IoU > 0.5) rising with cbt's own confidence; lost below 0.3 for 2 frames in a row

@@ -150,7 +150,7 @@ class CBTFilter:
     learn_online
         Learn the motion model while tracking (without ``model``).
     lost_below
-        Confidence below which the target is ``lost``.
+        Own confidence below which a frame is not measured (the box is the prediction; the frame is ``lost``).
     mass_full
         Mode mass that counts as a fully confident mode.
     model
@@ -159,7 +159,7 @@ class CBTFilter:
     mode_threshold
         Mass a posterior mode must hold to be counted in the ``modes`` scalar.
     coast_when_lost
-        Forget the learned velocity while lost.
+        Forget the learned velocity on a frame that is not measured.
     relative_scores
         Weigh detections relative to the frame's best score.
     confidence

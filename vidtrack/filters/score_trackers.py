@@ -148,7 +148,8 @@ class _CentreBoxFilter:
         peak before its update.
         """
         prior = self.estimate_
-        if (self.reseed_above is not None and prior.status == LOST and _usable(measurement, self.reseed_above)
+        if (self.reseed_above is not None and prior.status == LOST
+                and _usable(measurement, max(self.reseed_above, self.lost_below))
                 and score_at_centres(measurement, prior.box.center[None, :])[0] < RESEED_SCORE * measurement.scores.max()):
             self._reseed(self._keep_in_frame(map_peak(measurement)))
         estimate = self._update(measurement)
@@ -218,6 +219,9 @@ class NormalHedgeBoxFilter(_CentreBoxFilter):
     confidence
         Name of the calibrated confidence (``vidtrack/filters/calibration/<name>.json``); None: the
         concentration times the quality, ``lost`` when the update was skipped.
+    reseed_above
+        While lost, restart at the map's peak when the map's quality reaches this (and the filter's own
+        box scores under :data:`RESEED_SCORE` of the peak); None: never.
     """
 
     def __init__(self, n_actions: int = 100, alpha: float = 0.4, sigma_star: float = 0.25,
@@ -254,9 +258,11 @@ class NormalHedgeBoxFilter(_CentreBoxFilter):
         self.stages_ = {}
 
     def _reseed(self, centre: np.ndarray) -> None:
-        """Restart the actions around ``centre`` (zero regret, no velocity)."""
+        """Restart the actions around ``centre`` (zero regret, no velocity; the random stream continues)."""
         sigma = self.sigma_star * self.scale_
-        self.core_.initialize(centre + sigma * self.core_.rng_.standard_normal((self.n_actions, 2)))
+        rng = self.core_.rng_
+        self.core_.initialize(centre + sigma * rng.standard_normal((self.n_actions, 2)))
+        self.core_.rng_ = rng
         self.velocity_ = np.zeros(2)
         self.last_centre_ = np.asarray(centre, float).copy()
 
@@ -331,7 +337,7 @@ class ParticleBoxFilter(_CentreBoxFilter):
         Random-walk standard deviation per frame, in box sizes.
     sigma_s
         Score noise of the likelihood.
-    outside_score, lost_below, radius, rng, confidence
+    outside_score, lost_below, radius, rng, confidence, reseed_above
         As in :class:`NormalHedgeBoxFilter`.
     """
 
@@ -365,8 +371,10 @@ class ParticleBoxFilter(_CentreBoxFilter):
         self.stages_ = {}
 
     def _reseed(self, centre: np.ndarray) -> None:
-        """Restart every particle at ``centre``."""
+        """Restart every particle at ``centre`` (the random stream continues)."""
+        rng = self.core_.rng_
         self.core_.initialize(np.tile(centre, (self.n_particles, 1)))
+        self.core_.rng_ = rng
 
     def predict(self) -> Estimate:
         # The SIR step propagates and weights together; the prior's mean is the
@@ -416,7 +424,7 @@ class GridBayesBoxFilter(_CentreBoxFilter):
         Smallest grid spacing, pixels (bounds the cost on small boxes).
     extent
         Half-width of the grid window, in box sizes (the detector's window reaches about 1.75).
-    sigma_d, sigma_s, outside_score, lost_below, radius, confidence
+    sigma_d, sigma_s, outside_score, lost_below, radius, confidence, reseed_above
         As in :class:`ParticleBoxFilter`.
     """
 

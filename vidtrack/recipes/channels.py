@@ -70,10 +70,11 @@ class CBTConfig:
     score_temperature: float = option(0.05, "temperature of the detection weights exp((score - top) / T)")
     relative_scores: bool = option(True, "weigh detections relative to the frame's best score (false: to 1)")
     product: Literal["plain", "sqrt"] = option("plain", "product of channel vectors in the update")
-    lost_below: float = option(0.2, "confidence below which the target is lost")
+    lost_below: float = option(0.2, "cbt's own confidence below which a frame is not measured (the box is the "
+                                           "prediction, and the frame is lost)")
     mass_full: float = option(0.5, "posterior mass of the decoded mode that counts as full confidence")
     mode_threshold: float = option(0.05, "mass a posterior mode must hold to count in the 'modes' scalar")
-    coast_when_lost: bool = option(True, "forget the learned velocity while the target is lost")
+    coast_when_lost: bool = option(True, "forget the learned velocity on a frame that is not measured")
     confidence: str | None = option("cbt", "calibrated confidence: vidtrack/filters/calibration/<name>.json, "
                                            "fitted on the cf detector (none, or detector ncc: the mode mass "
                                            "times the best nearby score)")
