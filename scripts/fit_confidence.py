@@ -80,17 +80,16 @@ OUT = Path(__file__).resolve().parents[1] / "vidtrack" / "filters" / "calibratio
 #: sequences, score the 13th, pooled).  mil: the running verification, the inlier coverage, the presence
 #: flag, the colour likelihood and the verification gap (0.945 on the packaged tracker's frames; the
 #: quality, PSR and inlier coverage 0.914; all of :data:`~vidtrack.filters.mil.CUES` 0.929).  The score-map
-#: trackers and cbt, likewise, on the uncalibrated tracker's frames.  nh: the running colour likelihood and the
-#: verification gap (0.940; with the size gap as well 0.930, the uncalibrated confidence 0.767, all of
-#: :data:`~vidtrack.filters.score_trackers.CUES` 0.908; ``--select`` on these frames goes on to the map's
-#: quality, 0.947, a third cue the file does not use); pf: the running colour likelihood, the
+#: trackers and cbt, likewise, on the uncalibrated tracker's frames.  nh: the running colour likelihood, the
+#: verification gap and the map's quality (0.947; the first two alone 0.940, with the size gap 0.930, the
+#: uncalibrated confidence 0.767, all of :data:`~vidtrack.filters.score_trackers.CUES` 0.908); pf: the running colour likelihood, the
 #: verification gap and the particles' spread (0.946; 0.720, all 0.854); bayes: the running verification and colour
 #: likelihood and the spread (0.950; 0.684, all 0.913); cbt: the running colour likelihood, the running
 #: verification and the mode mass (0.923; the uncalibrated confidence 0.654, all of
 #: :data:`~vidtrack.filters.cbt.CUES` 0.866).
 MIL_CUES = tuple(c for c in mil_filter.CUES
                  if c[0] in ("verify_mean", "inlier_coverage", "present", "colour", "verify_gap"))
-NH_CUES = tuple(c for c in score_trackers.CUES if c[0] in ("colour_mean", "verify_gap"))
+NH_CUES = tuple(c for c in score_trackers.CUES if c[0] in ("colour_mean", "verify_gap", "quality"))
 PF_CUES = tuple(c for c in score_trackers.CUES if c[0] in ("colour_mean", "verify_gap", "spread"))
 BAYES_CUES = tuple(c for c in score_trackers.CUES if c[0] in ("verify_mean", "colour_mean", "spread"))
 CBT_CUES = tuple(c for c in cbt_filter.CUES if c[0] in ("colour_mean", "verify_mean", "mode_mass"))
