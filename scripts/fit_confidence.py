@@ -41,8 +41,8 @@ skipped (its ``unmeasured`` scalar), with ``(t, k)`` chosen in the same way
 on the held-out confidence; ``cbt``'s likewise, a frame it does not measure
 (its uncalibrated confidence below its ``lost_below``) being its skipped
 update.  The script prints, per tracker, the frames used, the coefficients,
-the tune ROC AUC, expected calibration error, false lost and missed loss of the fitted confidence (with the status as the
-filter reports it), and the ROC AUC with each sequence held out
+the tune ROC AUC, expected calibration error, false lost and missed loss of
+the fitted confidence (with the status as the filter reports it), and the ROC AUC with each sequence held out
 (:func:`held_out_auc`); ``--select`` also prints the forward selection of
 cues on that held-out figure (:func:`select_cues`), which chose the packaged
 cue sets, and for ``mil``'s presence model the forward selection on the
@@ -82,11 +82,11 @@ OUT = Path(__file__).resolve().parents[1] / "vidtrack" / "filters" / "calibratio
 #: quality, PSR and inlier coverage 0.914; all of :data:`~vidtrack.filters.mil.CUES` 0.929).  The score-map
 #: trackers and cbt, likewise, on the uncalibrated tracker's frames.  nh: the running colour likelihood, the
 #: verification gap and the map's quality (0.947; the first two alone 0.940, with the size gap 0.930, the
-#: uncalibrated confidence 0.767, all of :data:`~vidtrack.filters.score_trackers.CUES` 0.908); pf: the running colour likelihood, the
-#: verification gap and the particles' spread (0.946; 0.720, all 0.854); bayes: the running verification and colour
-#: likelihood and the spread (0.950; 0.684, all 0.913); cbt: the running colour likelihood, the running
-#: verification and the mode mass (0.923; the uncalibrated confidence 0.654, all of
-#: :data:`~vidtrack.filters.cbt.CUES` 0.866).
+#: uncalibrated confidence 0.767, all of :data:`~vidtrack.filters.score_trackers.CUES` 0.908); pf: the
+#: running colour likelihood, the verification gap and the particles' spread (0.946; 0.720, all 0.854);
+#: bayes: the running verification and colour likelihood and the spread (0.950; 0.684, all 0.913); cbt:
+#: the running colour likelihood, the running verification and the mode mass (0.923; the uncalibrated
+#: confidence 0.654, all of :data:`~vidtrack.filters.cbt.CUES` 0.866).
 MIL_CUES = tuple(c for c in mil_filter.CUES
                  if c[0] in ("verify_mean", "inlier_coverage", "present", "colour", "verify_gap"))
 NH_CUES = tuple(c for c in score_trackers.CUES if c[0] in ("colour_mean", "verify_gap", "quality"))

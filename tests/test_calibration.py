@@ -153,22 +153,33 @@ def test_mil_filter_reports_the_calibrated_probability_and_lost_by_the_presence_
     assert raw.update(None).status == LOST
 
 
+def _peaked_map(peaks, quality: float, margin: float = 15.0) -> ScoreMap:
+    """A map of 20 x 20 boxes on 1 px cells, ``margin`` px beyond the ``(centre, height)`` Gaussian ``peaks``."""
+    centres = np.array([centre for centre, _ in peaks], float)
+    lo, hi = centres.min(axis=0) - margin, centres.max(axis=0) + margin
+    origin = (lo[0] - 10.0, lo[1] - 10.0)
+    c = ScoreMap(np.zeros((int(hi[1] - lo[1]) + 1, int(hi[0] - lo[0]) + 1)), origin, 1.0, (20.0, 20.0)).centers()
+    scores = np.max([height * np.exp(-((c[..., 0] - centre[0]) ** 2 + (c[..., 1] - centre[1]) ** 2) / 18.0)
+                     for centre, height in peaks], axis=0)
+    return ScoreMap(scores, origin, 1.0, (20.0, 20.0), quality=quality)
+
+
 def _map_with_quality(centre, quality: float) -> ScoreMap:
     """A score map peaked at ``centre`` (20 x 20 boxes) whose peak quality is ``quality``."""
-    origin = (centre[0] - 10.0 - 15, centre[1] - 10.0 - 15)
-    smap = ScoreMap(np.zeros((31, 31)), origin, 1.0, (20.0, 20.0))
-    c = smap.centers()
-    scores = np.exp(-((c[..., 0] - centre[0]) ** 2 + (c[..., 1] - centre[1]) ** 2) / 18.0)
-    return ScoreMap(scores, origin, 1.0, (20.0, 20.0), quality=quality)
+    return _peaked_map([(centre, 1.0)], quality)
+
+
+def _rising_calibration(cue: str) -> Calibration:
+    """P(IoU > 0.5) rising with ``cue`` (0.5 at 0.5); lost below 0.3 for 2 frames in a row."""
+    return Calibration(cues=(cue,), mean=np.array([0.5]), scale=np.array([0.1]), coef=np.array([4.0]),
+                       intercept=0.0, fill=np.array([0.0]), lower=np.array([0.0]), upper=np.array([1.0]),
+                       lost_below=0.3, lost_after=2)
 
 
 @pytest.mark.parametrize("cls", [score_trackers.NormalHedgeBoxFilter, score_trackers.ParticleBoxFilter,
                                  score_trackers.GridBayesBoxFilter])
 def test_score_map_filters_report_lost_by_their_calibrated_confidence(cls, monkeypatch):
-    # P(IoU > 0.5) rising with the map's quality; lost below 0.3 for 2 frames in a row
-    cal = Calibration(cues=("quality",), mean=np.array([0.5]), scale=np.array([0.1]), coef=np.array([4.0]),
-                      intercept=0.0, fill=np.array([0.0]), lower=np.array([0.0]), upper=np.array([1.0]),
-                      lost_below=0.3, lost_after=2)
+    cal = _rising_calibration("quality")   # P(IoU > 0.5) rising with the map's quality
     monkeypatch.setattr(score_trackers, "load_calibration", lambda name: cal)
     f = cls(rng=np.random.default_rng(0), confidence="test")
     centre = np.array([100.0, 100.0])
@@ -186,20 +197,6 @@ def test_score_map_filters_report_lost_by_their_calibrated_confidence(cls, monke
     raw = cls(rng=np.random.default_rng(0))
     raw.initialize(Box.from_center(*centre, 20.0, 20.0))
     assert all(raw.update(_map_with_quality(raw.predict().box.center, 0.4)).status == TRACKING for _ in range(3))
-
-
-def _two_peak_map(near, far, near_peak: float, quality: float) -> ScoreMap:
-    """A map (20 x 20 boxes, 1 px cells) covering ``near`` and ``far``: peaks ``near_peak`` and 1 there."""
-    lo = np.minimum(near, far) - 25.0
-    hi = np.maximum(near, far) + 25.0
-    shape = (int(hi[1] - lo[1]) + 1, int(hi[0] - lo[0]) + 1)
-    smap = ScoreMap(np.zeros(shape), (lo[0] - 10.0, lo[1] - 10.0), 1.0, (20.0, 20.0))
-    c = smap.centers()
-
-    def bump(at):
-        return np.exp(-((c[..., 0] - at[0]) ** 2 + (c[..., 1] - at[1]) ** 2) / 18.0)
-
-    return ScoreMap(np.maximum(near_peak * bump(near), bump(far)), smap.origin, 1.0, (20.0, 20.0), quality=quality)
 
 
 @pytest.mark.parametrize("cls", [score_trackers.NormalHedgeBoxFilter, score_trackers.ParticleBoxFilter,
@@ -224,8 +221,8 @@ def test_a_lost_score_map_filter_restarts_at_a_confident_re_detection(cls):
     # not below reseed_above, not while tracking, not when the prior's own box scores half the peak or more
     assert distance(filter_(0.5), _map_with_quality(found, 0.4)) > 45.0
     assert distance(filter_(0.5, lost=False), _map_with_quality(found, 0.9)) > 45.0
-    assert distance(filter_(0.5), _two_peak_map(start, found, 0.8, 0.9)) > 45.0
-    assert distance(filter_(0.5), _two_peak_map(start, found, 0.3, 0.9)) < 2.0
+    assert distance(filter_(0.5), _peaked_map([(start, 0.8), (found, 1.0)], 0.9, margin=25.0)) > 45.0
+    assert distance(filter_(0.5), _peaked_map([(start, 0.3), (found, 1.0)], 0.9, margin=25.0)) < 2.0
     # a map too weak for the update (quality under lost_below, 0.35) restarts nothing, whatever reseed_above
     f = filter_(0.2)
     f.update(_map_with_quality(found, 0.3))
@@ -233,10 +230,7 @@ def test_a_lost_score_map_filter_restarts_at_a_confident_re_detection(cls):
 
 
 def test_cbt_reports_lost_by_its_calibrated_confidence(monkeypatch):
-    # P(IoU > 0.5) rising with cbt's own confidence; lost below 0.3 for 2 frames in a row
-    cal = Calibration(cues=("raw_confidence",), mean=np.array([0.5]), scale=np.array([0.1]), coef=np.array([4.0]),
-                      intercept=0.0, fill=np.array([0.0]), lower=np.array([0.0]), upper=np.array([1.0]),
-                      lost_below=0.3, lost_after=2)
+    cal = _rising_calibration("raw_confidence")   # P(IoU > 0.5) rising with cbt's own confidence
     monkeypatch.setattr(cbt_filter, "load_calibration", lambda name: cal)
 
     def detection(f, score):   # one detection at the predicted centre

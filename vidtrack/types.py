@@ -217,6 +217,11 @@ class ScoreMap:
             self.box_size[1],
         )
 
+    def best_box(self) -> Box:
+        """The box of the map's highest score (the first on ties)."""
+        row, col = np.unravel_index(int(np.argmax(self.scores)), np.shape(self.scores))
+        return self.box_at(row, col)
+
     def centers(self) -> np.ndarray:
         """Box centres of every cell, shape ``(H, W, 2)`` ``[cx, cy]``."""
         rows, cols = np.indices(self.scores.shape, dtype=float)

@@ -83,8 +83,7 @@ def score_map_cues(smap: ScoreMap, centre, scale: float, init_scale: float) -> d
     scores = np.asarray(smap.scores, dtype=float)
     if scores.size == 0:
         return {}
-    r, c = np.unravel_index(int(np.argmax(scores)), scores.shape)
-    peak = smap.box_at(r, c).center
+    peak = smap.best_box().center
     size = float(np.sqrt(max(smap.box_size[0] * smap.box_size[1], 1e-9)))
     return {"score_at": map_value(scores, smap, centre),
             "peak_offset": float(np.linalg.norm(np.asarray(centre, float) - peak) / max(scale, 1e-9)),

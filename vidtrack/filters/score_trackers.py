@@ -102,12 +102,6 @@ CUES = (
 RESEED_SCORE = 0.5
 
 
-def map_peak(smap: ScoreMap) -> np.ndarray:
-    """The centre ``[cx, cy]`` of the map's best box."""
-    row, col = np.unravel_index(int(np.argmax(smap.scores)), smap.scores.shape)
-    return smap.centers()[row, col]
-
-
 def _usable(measurement: Measurement | None, lost_below: float) -> bool:
     return (isinstance(measurement, ScoreMap) and measurement.scores.size > 0
             and float(measurement.quality) >= lost_below)
@@ -142,16 +136,11 @@ class _CentreBoxFilter:
     def update(self, measurement: Measurement | None) -> Estimate:
         """The filter's own update, then the confidence and status from the cues (see the module docstring).
 
-        A lost prior, a map of quality at least ``reseed_above`` (the
-        detector's re-detection found the target) on which the prior's own
-        box scores less than half the peak: the filter restarts at the map's
-        peak before its update.
+        When :meth:`_restarts`, the filter restarts at the map's peak before its update.
         """
         prior = self.estimate_
-        if (self.reseed_above is not None and prior.status == LOST
-                and _usable(measurement, max(self.reseed_above, self.lost_below))
-                and score_at_centres(measurement, prior.box.center[None, :])[0] < RESEED_SCORE * measurement.scores.max()):
-            self._reseed(self._keep_in_frame(map_peak(measurement)))
+        if self._restarts(prior, measurement):
+            self._reseed(self._keep_in_frame(measurement.best_box().center))
         estimate = self._update(measurement)
         measured = estimate.status == TRACKING
         self.unmeasured_run_ = 0 if measured else self.unmeasured_run_ + 1
@@ -180,6 +169,20 @@ class _CentreBoxFilter:
                                            status=LOST if lost else TRACKING)
         self.estimate_ = estimate
         return self.estimate_
+
+    def _restarts(self, prior: Estimate, measurement: Measurement | None) -> bool:
+        """Whether a lost ``prior`` restarts at ``measurement``'s peak (``reseed_above`` set).
+
+        The detector's re-detection found the target: a map the update will
+        use, of quality at least ``reseed_above``, on which the prior's own
+        box scores under :data:`RESEED_SCORE` of the peak.
+        """
+        if self.reseed_above is None or prior.status != LOST:
+            return False
+        if not _usable(measurement, max(self.reseed_above, self.lost_below)):
+            return False
+        own = score_at_centres(measurement, prior.box.center[None, :])[0]
+        return bool(own < RESEED_SCORE * float(np.max(measurement.scores)))
 
     @property
     def estimate(self) -> Estimate:
