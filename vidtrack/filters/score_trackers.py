@@ -46,11 +46,11 @@ probability has stayed below the file's ``lost_below`` for its
 ``lost_after`` frames in a row, or when the update was skipped (the
 ``unmeasured`` scalar).  A ``lost`` status starts the detector's
 re-detection (:mod:`vidtrack.measure.correlation_score_map`) and stops its
-learning.  With ``reseed_above`` set (the ``nh`` and ``pf`` recipes), a
+learning.  With ``reseed_above`` set (the ``nh``, ``pf`` and ``bayes`` recipes), a
 filter whose prior is lost restarts at the map's peak when the map's quality
 reaches it and the prior's own box scores under :data:`RESEED_SCORE` of the
-peak: the re-detection has found the target where the filter's actions or
-particles, spread around the prior, would not reach it.  Each
+peak: the re-detection has found the target where the filter's actions,
+particles or grid mass, gathered around the prior, would not reach it.  Each
 exposes (in ``Estimate.stages``) ``{"particles": (N, 3) [cx, cy, weight]}`` in frame
 coordinates after every update.
 """

@@ -105,11 +105,11 @@ def build_bayes(config: GridBayesConfig, seed=None) -> Tracker:
 
 
 # On the correlation-filter map: nh keeps more actions, a shorter regret memory and re-samples wider,
-# bayes walks wider; nh and pf restart at a confident re-detection while lost, which the exact grid of
-# bayes (two box sizes around its estimate) does not need (see vidtrack.filters.score_trackers)
+# bayes walks wider; all three restart at a confident re-detection while lost (see
+# vidtrack.filters.score_trackers)
 NH = NormalHedgeConfig(n_actions=300, alpha=0.6, sigma_star=0.35, reseed_above=0.7)
 PF = ParticleConfig(reseed_above=0.7)
-BAYES = GridBayesConfig(sigma_d=0.15)
+BAYES = GridBayesConfig(sigma_d=0.2, reseed_above=0.7)
 
 RECIPES = {
     "nh": Recipe("SMC NormalHedge on a sliding-detector score map (Chaudhuri, Freund & Hsu 2010)", build_nh, NH),
