@@ -84,7 +84,8 @@ OUT = Path(__file__).resolve().parents[1] / "vidtrack" / "filters" / "calibratio
 #: verification gap and the map's quality (0.947; the first two alone 0.940, with the size gap 0.930, the
 #: uncalibrated confidence 0.767, all of :data:`~vidtrack.filters.score_trackers.CUES` 0.908); pf: the
 #: running colour likelihood, the verification gap and the particles' spread (0.946; 0.720, all 0.854);
-#: bayes: the running verification and colour likelihood and the spread (0.950; 0.684, all 0.913); cbt:
+#: bayes: the running verification and colour likelihood and the spread (0.946; forward selection takes the
+#: map's score at the estimate third instead, 0.947; the uncalibrated confidence 0.803, all 0.907); cbt:
 #: the running colour likelihood, the running verification and the mode mass (0.923; the uncalibrated
 #: confidence 0.654, all of :data:`~vidtrack.filters.cbt.CUES` 0.866).
 MIL_CUES = tuple(c for c in mil_filter.CUES
