@@ -104,10 +104,10 @@ def build_bayes(config: GridBayesConfig, seed=None) -> Tracker:
                                                         confidence=_calibrated(config)))
 
 
-# On the correlation-filter map: nh keeps more actions, a shorter regret memory and re-samples wider,
+# On the correlation-filter map: nh keeps more actions and a shorter regret memory,
 # bayes walks wider; all three restart at a confident re-detection while lost (see
 # vidtrack.filters.score_trackers)
-NH = NormalHedgeConfig(n_actions=300, alpha=0.6, sigma_star=0.35, reseed_above=0.7)
+NH = NormalHedgeConfig(n_actions=300, alpha=0.6, reseed_above=0.7)
 PF = ParticleConfig(reseed_above=0.7)
 BAYES = GridBayesConfig(sigma_d=0.2, reseed_above=0.7)
 
