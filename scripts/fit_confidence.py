@@ -81,8 +81,9 @@ OUT = Path(__file__).resolve().parents[1] / "vidtrack" / "filters" / "calibratio
 #: flag, the colour likelihood and the verification gap (0.945 on the packaged tracker's frames; the
 #: quality, PSR and inlier coverage 0.914; all of :data:`~vidtrack.filters.mil.CUES` 0.929).  The score-map
 #: trackers and cbt, likewise, on the uncalibrated tracker's frames.  nh: the running colour likelihood, the
-#: verification gap and the map's quality (0.947; the first two alone 0.940, with the size gap 0.930, the
-#: uncalibrated confidence 0.767, all of :data:`~vidtrack.filters.score_trackers.CUES` 0.908); pf: the
+#: verification gap and the map's quality (0.924; the first two alone 0.920, forward selection takes the spread
+#: instead of the quality, 0.929; the uncalibrated confidence 0.809, all of
+#: :data:`~vidtrack.filters.score_trackers.CUES` 0.848); pf: the
 #: running colour likelihood, the verification gap and the particles' spread (0.946; 0.720, all 0.854);
 #: bayes: the running verification and colour likelihood and the spread (0.946; forward selection takes the
 #: map's score at the estimate third instead, 0.947; the uncalibrated confidence 0.803, all 0.907); cbt:
