@@ -78,22 +78,25 @@ OUT = Path(__file__).resolve().parents[1] / "vidtrack" / "filters" / "calibratio
 
 #: The cues the packaged files use, chosen on tune by forward selection on :func:`held_out_auc` (fit on 12
 #: sequences, score the 13th, pooled).  mil: the running verification, the inlier coverage, the presence
-#: flag, the colour likelihood and the verification gap (0.945 on the packaged tracker's frames; the
-#: quality, PSR and inlier coverage 0.914; all of :data:`~vidtrack.filters.mil.CUES` 0.929).  The score-map
-#: trackers and cbt, likewise, on the uncalibrated tracker's frames.  nh: the running colour likelihood, the
-#: verification gap and the map's quality (0.924; the first two alone 0.920, forward selection takes the spread
-#: instead of the quality, 0.929; the uncalibrated confidence 0.809, all of
-#: :data:`~vidtrack.filters.score_trackers.CUES` 0.848); pf: the
-#: running colour likelihood, the verification gap and the particles' spread (0.946; 0.720, all 0.854);
-#: bayes: the running verification and colour likelihood and the spread (0.946; forward selection takes the
-#: map's score at the estimate third instead, 0.947; the uncalibrated confidence 0.803, all 0.907); cbt:
-#: the running colour likelihood, the running verification and the mode mass (0.923; the uncalibrated
-#: confidence 0.654, all of :data:`~vidtrack.filters.cbt.CUES` 0.866).
+#: flag, the colour likelihood and the verification gap (0.947 on the packaged tracker's frames; the
+#: quality, PSR and inlier coverage 0.914; all of :data:`~vidtrack.filters.mil.CUES` 0.913; with the border
+#: gap added 0.935, and it does not lower the held-out cost of the presence model's lost rule either).  The
+#: score-map trackers and cbt, likewise, on the uncalibrated tracker's frames.  nh: the running colour
+#: likelihood, the verification gap, the map's quality and the box's gap to the frame's border (0.935; without
+#: the border gap 0.924; forward selection takes the actions' spread instead of the quality, 0.934; the
+#: uncalibrated confidence 0.809, all of :data:`~vidtrack.filters.score_trackers.CUES` 0.873); pf: the
+#: running colour likelihood, the verification gap, the particles' spread and the border gap (0.967, the
+#: set forward selection takes; without the border gap 0.946; the uncalibrated confidence 0.720, all 0.914);
+#: bayes: the running verification and colour likelihood, the spread and the border gap (0.960, the set
+#: forward selection takes with the map's score at the estimate added third; without the border gap 0.946;
+#: the uncalibrated confidence 0.803, all 0.936); cbt: the running colour likelihood, the running
+#: verification and the mode mass (0.923; with the border gap 0.925, under the selection's step; the
+#: uncalibrated confidence 0.654, all of :data:`~vidtrack.filters.cbt.CUES` 0.898).
 MIL_CUES = tuple(c for c in mil_filter.CUES
                  if c[0] in ("verify_mean", "inlier_coverage", "present", "colour", "verify_gap"))
-NH_CUES = tuple(c for c in score_trackers.CUES if c[0] in ("colour_mean", "verify_gap", "quality"))
-PF_CUES = tuple(c for c in score_trackers.CUES if c[0] in ("colour_mean", "verify_gap", "spread"))
-BAYES_CUES = tuple(c for c in score_trackers.CUES if c[0] in ("verify_mean", "colour_mean", "spread"))
+NH_CUES = tuple(c for c in score_trackers.CUES if c[0] in ("colour_mean", "verify_gap", "quality", "border_gap"))
+PF_CUES = tuple(c for c in score_trackers.CUES if c[0] in ("colour_mean", "verify_gap", "spread", "border_gap"))
+BAYES_CUES = tuple(c for c in score_trackers.CUES if c[0] in ("verify_mean", "colour_mean", "spread", "border_gap"))
 CBT_CUES = tuple(c for c in cbt_filter.CUES if c[0] in ("colour_mean", "verify_mean", "mode_mass"))
 
 #: tracker -> (its cues, the setting that switches its calibration off, the rule of its lost threshold)

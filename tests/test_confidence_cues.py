@@ -12,7 +12,7 @@ from vidtrack.eval.metrics import iou
 from vidtrack.filters import cbt as cbt_filter
 from vidtrack.filters import score_trackers
 from vidtrack.filters.calibration import Calibration, load_calibration
-from vidtrack.filters.confidence_cues import map_value, verification_cues
+from vidtrack.filters.confidence_cues import border_cues, map_value, verification_cues
 from vidtrack.measure.verification import AppearanceVerifier, VerifiedMeasurer
 from vidtrack.recipes import build_tracker
 from vidtrack.types import TRACKING, Box, Detections, Estimate, Frame, ScoreMap, Superpixels
@@ -99,6 +99,26 @@ def test_map_value_is_bilinear_and_clamped_to_the_map():
     assert map_value(smap.scores, smap, (13.0, 24.0)) == pytest.approx(1.5)   # cell (0.5, 0.5)
     assert map_value(smap.scores, smap, (0.0, 0.0)) == pytest.approx(0.0)     # off the map: its corner
     assert map_value(smap.scores, smap, (99.0, 99.0)) == pytest.approx(3.0)
+
+
+def test_the_border_gap_is_the_distance_to_the_nearest_edge_in_box_sizes():
+    assert border_cues(Box(40, 30, 10, 10), (100, 80))["border_gap"] == pytest.approx(3.0)   # 30 px over, to the top
+    assert border_cues(Box(85, 30, 10, 10), (100, 80))["border_gap"] == pytest.approx(0.5)   # 5 px to the right
+    assert border_cues(Box(-4, 30, 10, 10), (100, 80))["border_gap"] == 0.0                  # across the left edge
+    assert border_cues(Box(40, 30, 10, 10), None) == {}
+
+
+@pytest.mark.parametrize("name", ["mil", "nh", "cbt"])
+def test_every_filter_reports_the_border_gap_of_its_box(name):
+    frames, boxes = synthetic_sequence(n=4)
+    tracker = build_tracker(name, seed=0)
+    tracker.initialize(frames[0], boxes[0])
+    centre_filter = getattr(tracker.filter, "inner", tracker.filter)   # the box the cues are read at
+    for frame in frames[1:]:
+        state = tracker.step(frame)
+        height, width = frame.image.shape[:2]
+        expected = border_cues(centre_filter.estimate.box, (width, height))["border_gap"]
+        assert state.scalars["border_gap"] == pytest.approx(expected) and expected > 0.5
 
 
 def test_the_verified_measurer_only_adds_the_verification_stage():

@@ -30,7 +30,7 @@ from ..errors import UsageError
 from ..types import LOST, TRACKING, Box, Detections, Estimate, Frame, Measurement
 from .calibration import LostRule, load_calibration
 from .cbt_model import CBTModel
-from .confidence_cues import RUNNING_CUES, VERIFICATION_CUES, RunningCues, verification_cues
+from .confidence_cues import POSITION_CUES, RUNNING_CUES, VERIFICATION_CUES, RunningCues, border_cues, verification_cues
 from .channels import mean_field_update, product_likelihood
 
 #: The calibrated confidence's cues: (name, value when missing, lower, upper); see :class:`CBTFilter`
@@ -47,6 +47,7 @@ CUES = (
     ("coast", 0.0, 0.0, 6.0),
     *VERIFICATION_CUES,
     *RUNNING_CUES,
+    *POSITION_CUES,
 )
 
 #: Largest memory, in MB, the position grid's transition tensors may take (both axes, with the temporaries
@@ -330,6 +331,7 @@ class CBTFilter:
             scalars["psr"] = float(stages["psr"])
         scalars.update(verification_cues(stages, box.center))
         scalars.update(self.running_.update(scalars))
+        scalars.update(border_cues(box, self.frame_size_))
         if self.calibration_ is None:
             return raw
         return self.calibration_.probability(scalars)

@@ -20,7 +20,10 @@ here, from what the measurer put in the measurement:
 * ``log_scale``: ``|log|`` of the measured box size over the initial one;
 * ``verify_mean``, ``colour_mean``: ``verify`` and ``colour`` averaged over
   the last frames (an exponential average, :class:`RunningCues`): a drift
-  lasts, a single blurred or occluded frame does not.
+  lasts, a single blurred or occluded frame does not;
+* ``border_gap``: the filter's box's distance to the nearest edge of the
+  frame, in box sizes (:func:`border_cues`): a box that has lost its target
+  often comes to rest against the frame's edge, where targets seldom are.
 """
 
 from __future__ import annotations
@@ -44,6 +47,11 @@ VERIFICATION_CUES = (
 RUNNING_CUES = (
     ("verify_mean", 0.0, -1.0, 1.0),
     ("colour_mean", 0.5, 0.0, 1.0),
+)
+
+#: The position cue's row (:func:`border_cues`): at least this many box sizes from every edge counts as inside
+POSITION_CUES = (
+    ("border_gap", 1.0, 0.0, 1.0),
 )
 
 
@@ -76,6 +84,19 @@ def verification_cues(stages: Mapping, centre) -> dict[str, float]:
     if colour is not None:
         out["colour"] = map_value(colour, ver, centre)
     return out
+
+
+def border_cues(box, frame_size) -> dict[str, float]:
+    """``border_gap``: the distance from ``box`` to the nearest edge of a ``(width, height)`` frame, in box sizes.
+
+    The box size is ``sqrt(w h)``; a box across an edge has a gap of 0.  Empty without a frame size.
+    """
+    if frame_size is None:
+        return {}
+    width, height = (float(v) for v in frame_size)
+    x, y, w, h = (float(v) for v in box.as_array())
+    gap = min(x, y, width - (x + w), height - (y + h))
+    return {"border_gap": max(gap, 0.0) / max(float(np.sqrt(max(w * h, 1e-9))), 1e-9)}
 
 
 def score_map_cues(smap: ScoreMap, centre, scale: float, init_scale: float) -> dict[str, float]:

@@ -26,7 +26,7 @@ import numpy as np
 from ..config import option
 from ..types import LOST, TRACKING, Box, Estimate, Frame, Measurement
 from .calibration import LostRule, load_calibration
-from .confidence_cues import RUNNING_CUES, VERIFICATION_CUES, RunningCues, verification_cues
+from .confidence_cues import POSITION_CUES, RUNNING_CUES, VERIFICATION_CUES, RunningCues, border_cues, verification_cues
 from .kalman import kf_predict, kf_update, motion_model
 
 # ------------------------------------------------------------------ pure maths
@@ -69,6 +69,7 @@ CUES = (
     ("cue_agreement", 1.0, 0.0, 2.0),
     *VERIFICATION_CUES,
     *RUNNING_CUES,
+    *POSITION_CUES,
 )
 
 #: Occlusion reasoning (:meth:`MILKalmanFilter._occlusion`): a frame is wholly visible when its inlier coverage
@@ -316,6 +317,7 @@ class MILKalmanFilter:
         verification = verification_cues(stages, self._box().center)   # empty without the verification map
         scalars.update(verification)
         scalars.update(self.running_.update(verification))
+        scalars.update(border_cues(self._box(), self.frame_size_))
         scalars["unmeasured"] = float(measurement is None)   # nothing at all (the search left the frame): lost
         confidence = float(np.clip(quality, 0.0, 1.0))
         if self.calibration_ is not None:

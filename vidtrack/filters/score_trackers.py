@@ -39,7 +39,8 @@ estimate's standard deviation in box sizes, and the cues of
 :mod:`vidtrack.filters.confidence_cues` read at the estimate: the first-frame
 verification ``verify``, ``verify_gap``, ``verify_size_gap``, ``colour`` and
 their running averages, the map's ``score_at``, ``peak_offset`` and
-``log_scale``; the packaged files use two or three cues each, chosen on *tune*, see
+``log_scale``, and the box's ``border_gap`` to the frame's edge; the packaged files use four cues each,
+chosen on *tune*, see
 ``scripts/fit_confidence.py``), and the status is the calibration's
 (:class:`~vidtrack.filters.calibration.LostRule`): ``lost`` when that
 probability has stayed below the file's ``lost_below`` for its
@@ -65,7 +66,8 @@ from scipy.ndimage import map_coordinates
 
 from ..types import LOST, TRACKING, Box, Estimate, Frame, Measurement, ScoreMap
 from .calibration import LostRule, load_calibration
-from .confidence_cues import RUNNING_CUES, VERIFICATION_CUES, RunningCues, score_map_cues, verification_cues
+from .confidence_cues import (POSITION_CUES, RUNNING_CUES, VERIFICATION_CUES, RunningCues, border_cues, score_map_cues,
+                              verification_cues)
 from .grid_bayes import gaussian_transition, grid_predict_separable, grid_update_log
 from .normalhedge import NormalHedgeTracker, weight_concentration
 from .particle import ParticleFilter, weighted_mean_cov
@@ -95,6 +97,7 @@ CUES = (
     ("log_scale", 0.0, 0.0, 2.0),
     ("spread", 2.0, 0.0, 2.0),
     *RUNNING_CUES,
+    *POSITION_CUES,
 )
 
 
@@ -154,6 +157,7 @@ class _CentreBoxFilter:
         centre = estimate.box.center
         cues.update(verification_cues(stages, centre))
         cues.update(self.running_.update(cues))
+        cues.update(border_cues(estimate.box, self.frame_size_))
         if isinstance(measurement, ScoreMap):
             cues.update(score_map_cues(measurement, centre, self.scale_, self.scale_))
         if estimate.covariance is not None:
