@@ -102,13 +102,17 @@ def test_map_value_is_bilinear_and_clamped_to_the_map():
 
 
 def test_the_border_gap_is_the_distance_to_the_nearest_edge_in_box_sizes():
-    assert border_cues(Box(40, 30, 10, 10), (100, 80))["border_gap"] == pytest.approx(3.0)   # 30 px over, to the top
-    assert border_cues(Box(85, 30, 10, 10), (100, 80))["border_gap"] == pytest.approx(0.5)   # 5 px to the right
-    assert border_cues(Box(-4, 30, 10, 10), (100, 80))["border_gap"] == 0.0                  # across the left edge
-    assert border_cues(Box(40, 30, 10, 10), None) == {}
+    frame = (100, 80)                     # (width, height)
+    box_size = np.sqrt(8 * 18)            # the gap is in units of sqrt(w h) = 12 px
+    assert border_cues(Box(40, 30, 8, 18), frame)["border_gap"] == pytest.approx(30 / box_size)   # top, 30 px
+    assert border_cues(Box(86, 30, 8, 18), frame)["border_gap"] == pytest.approx(6 / box_size)    # right, 6 px
+    assert border_cues(Box(40, 59, 8, 18), frame)["border_gap"] == pytest.approx(3 / box_size)    # bottom, 3 px
+    assert border_cues(Box(-4, 30, 8, 18), frame)["border_gap"] == 0.0                            # across the left
+    assert border_cues(Box(-10, -10, 120, 100), frame)["border_gap"] == 0.0                       # over the frame
+    assert border_cues(Box(40, 30, 8, 18), None) == {}
 
 
-@pytest.mark.parametrize("name", ["mil", "nh", "cbt"])
+@pytest.mark.parametrize("name", ["mil", "nh", "pf", "bayes", "cbt"])
 def test_every_filter_reports_the_border_gap_of_its_box(name):
     frames, boxes = synthetic_sequence(n=4)
     tracker = build_tracker(name, seed=0)

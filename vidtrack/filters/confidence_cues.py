@@ -1,9 +1,9 @@
-"""Per-frame confidence cues read from a measurement at the filter's estimate (no pixels).
+"""Per-frame confidence cues read at the filter's estimate from a measurement and the frame's size (no pixels).
 
 The calibrated confidence (:mod:`vidtrack.filters.calibration`) of the
 trackers on the correlation detector combines cues that each see a different
-failure.  Those that need the measurement at the reported box are computed
-here, from what the measurer put in the measurement:
+failure.  Those that need the measurement at the reported box, or the box
+and the frame's size, are computed here:
 
 * ``verify``, ``colour``: the appearance verification map
   (:mod:`vidtrack.measure.verification`, ``stages["verification"]``, a
@@ -22,7 +22,8 @@ here, from what the measurer put in the measurement:
   the last frames (an exponential average, :class:`RunningCues`): a drift
   lasts, a single blurred or occluded frame does not;
 * ``border_gap``: the filter's box's distance to the nearest edge of the
-  frame, in box sizes (:func:`border_cues`): a box that has lost its target
+  frame, in box sizes (the score-map filters' and cbt's box keeps the first
+  frame's size; the measured size is applied after them) (:func:`border_cues`): a box that has lost its target
   often comes to rest against the frame's edge, where targets seldom are.
 """
 
@@ -49,7 +50,7 @@ RUNNING_CUES = (
     ("colour_mean", 0.5, 0.0, 1.0),
 )
 
-#: The position cue's row (:func:`border_cues`): at least this many box sizes from every edge counts as inside
+#: The position cue's row (:func:`border_cues`); a box a box size or more from every edge has the upper bound, 1
 POSITION_CUES = (
     ("border_gap", 1.0, 0.0, 1.0),
 )

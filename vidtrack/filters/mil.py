@@ -266,7 +266,8 @@ class MILKalmanFilter:
         the first frame's appearance verification map, its cues at the
         updated box and their running averages
         (:mod:`vidtrack.filters.confidence_cues`: ``verify``, ``verify_gap``,
-        ``colour``, ``verify_mean``, ``colour_mean``).  The status follows the
+        ``colour``, ``verify_mean``, ``colour_mean``), and ``border_gap``, the
+        box's distance to the frame's edge in box sizes.  The status follows the
         calibration's :class:`~vidtrack.filters.calibration.LostRule` (the
         presence below its threshold for some frames in a row); no
         measurement at all (``None``) is ``lost`` at once.
