@@ -22,9 +22,10 @@ and the frame's size, are computed here:
   the last frames (an exponential average, :class:`RunningCues`): a drift
   lasts, a single blurred or occluded frame does not;
 * ``border_gap``: the filter's box's distance to the nearest edge of the
-  frame, in box sizes (the score-map filters' and cbt's box keeps the first
-  frame's size; the measured size is applied after them) (:func:`border_cues`): a box that has lost its target
-  often comes to rest against the frame's edge, where targets seldom are.
+  frame, in box sizes (:func:`border_cues`; the score-map filters' and cbt's
+  box keeps the first frame's size, the measured size is applied after them):
+  a box that has lost its target often comes to rest against the frame's
+  edge, where targets seldom are.
 """
 
 from __future__ import annotations
@@ -90,14 +91,15 @@ def verification_cues(stages: Mapping, centre) -> dict[str, float]:
 def border_cues(box, frame_size) -> dict[str, float]:
     """``border_gap``: the distance from ``box`` to the nearest edge of a ``(width, height)`` frame, in box sizes.
 
-    The box size is ``sqrt(w h)``; a box across an edge has a gap of 0.  Empty without a frame size.
+    The box size is :attr:`~vidtrack.types.Box.scale`, ``sqrt(w h)``; a box across an edge has a gap of 0.
+    Empty without a frame size.
     """
     if frame_size is None:
         return {}
     width, height = (float(v) for v in frame_size)
     x, y, w, h = (float(v) for v in box.as_array())
     gap = min(x, y, width - (x + w), height - (y + h))
-    return {"border_gap": max(gap, 0.0) / max(float(np.sqrt(max(w * h, 1e-9))), 1e-9)}
+    return {"border_gap": max(gap, 0.0) / box.scale}
 
 
 def score_map_cues(smap: ScoreMap, centre, scale: float, init_scale: float) -> dict[str, float]:

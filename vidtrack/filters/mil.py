@@ -315,15 +315,16 @@ class MILKalmanFilter:
             quality = min(quality, self.config.lost_below * 0.99)
             if present:   # predicted only, but the target is there: not lost
                 status = TRACKING
-        verification = verification_cues(stages, self._box().center)   # empty without the verification map
+        reported = self._box()
+        verification = verification_cues(stages, reported.center)   # empty without the verification map
         scalars.update(verification)
         scalars.update(self.running_.update(verification))
-        scalars.update(border_cues(self._box(), self.frame_size_))
+        scalars.update(border_cues(reported, self.frame_size_))
         scalars["unmeasured"] = float(measurement is None)   # nothing at all (the search left the frame): lost
         confidence = float(np.clip(quality, 0.0, 1.0))
         if self.calibration_ is not None:
             confidence = self.calibration_.probability(scalars)
             status = LOST if self.lost_rule_.lost(scalars) else TRACKING
         cov = self.C_ @ self.P_ @ self.C_.T
-        self.estimate_ = Estimate(self._box(), cov, confidence, status, scalars)
+        self.estimate_ = Estimate(reported, cov, confidence, status, scalars)
         return self.estimate_
