@@ -104,6 +104,14 @@ class CorrelationConfig:
                                          "within this fraction of the searched size")
 
 
+def make_scale_filter(config: CorrelationConfig) -> ScaleFilter | None:
+    """The :class:`~vidtrack.measure.scale_filter.ScaleFilter` of ``config`` (None when ``scale_filter`` is off)."""
+    if not config.scale_filter:
+        return None
+    return ScaleFilter(n_scales=config.scale_count, step=config.scale_step, learning_rate=config.scale_rate,
+                       model_area=config.scale_area, colour=config.colour)
+
+
 @dataclass(frozen=True)
 class CorrelationResult:
     """The detector's answer for one window.
@@ -200,9 +208,7 @@ class CorrelationFilter:
         self.target_fft_ = fft.rfft2(gaussian_response(self.shape_, c.sigma_factor * box_cells).astype(np.float32))
         self.numerator_ = self.denominator_ = self.model_fft_ = self.admm_state_ = None
         self.last_sample_ = None
-        self.scale_ = (ScaleFilter(n_scales=c.scale_count, step=c.scale_step, learning_rate=c.scale_rate,
-                                   model_area=c.scale_area, colour=c.colour)
-                       if c.scale_filter else None)
+        self.scale_ = make_scale_filter(c)
         self.colour_model_ = (ColourHistogramModel(bins=c.colour_bins, learning_rate=c.colour_rate)
                               if c.colour_merge > 0 else None)
         if self.scale_ is not None:
