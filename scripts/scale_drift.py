@@ -6,18 +6,22 @@ tracker's correlation filter (DSST's 1-D filter, Danelljan, Häger, Khan &
 Felsberg, "Accurate Scale Estimation for Robust Visual Tracking", BMVC 2014;
 :class:`~vidtrack.measure.scale_filter.ScaleFilter`), configured as the
 tracker configures it (``--filter``, and any ``--set`` of its options), is
-started on the first ground-truth box and then, every frame, estimates the
-scale change at the ground-truth centre (interpolated between annotated
-frames) from its own last size, and learns there, as the tracker's filter
-learns from its posterior box.  It prints, per sequence, the ratio of its
-size ``sqrt(w h)`` to the ground truth's, on annotated frames: at the last
-one, and the mean and the largest ``|log|`` of the ratio::
+started on the first ground-truth box and then, in every frame, estimates
+the scale change at the ground-truth centre (interpolated between annotated
+frames) from its own last size, and learns at the box it estimated.  It
+learns in every frame, where a tracker learns only from the frames it is
+confident of, so the drift measured is the scale filter's own.  It prints,
+per sequence, the ratio of its size ``sqrt(w h)`` to the ground truth's on
+the annotated frames: at the last one, and the mean and the largest
+``|log|`` of the ratio::
 
     python scripts/scale_drift.py ../shared/data/sequences --sequences Human9,Girl --filter mil
     python scripts/scale_drift.py ../shared/data/sequences --filter nh --set cf.scale_rate=0.01
 
 Nothing bounds the size here (the trackers clamp it to a range of the first
-frame's), so a drift shows in full.
+frame's), so a drift shows in full.  A tracker whose box size does not come
+from a scale filter (``mil-paper``, a detector other than ``cf``, a scale
+search over several ``scale_factors``) is refused.
 """
 
 from __future__ import annotations
@@ -30,8 +34,9 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from vidtrack.errors import VidtrackError  # noqa: E402
-from vidtrack.eval.datasets import annotated_rows, load_dataset  # noqa: E402
+from vidtrack.config import parse_setting  # noqa: E402
+from vidtrack.errors import UsageError, VidtrackError  # noqa: E402
+from vidtrack.eval.datasets import BenchmarkSequence, annotated_rows, load_dataset  # noqa: E402
 from vidtrack.measure.correlation import CorrelationConfig, make_scale_filter  # noqa: E402
 from vidtrack.measure.scale_filter import ScaleFilter  # noqa: E402
 from vidtrack.recipes import recipe_config  # noqa: E402
@@ -41,25 +46,41 @@ from vidtrack.types import Box  # noqa: E402
 TUNE = "David,Sylvester,FaceOcc1,FaceOcc2,Girl,Tiger1,Tiger2,Man,Dancer2,Football1,Human9,Subway,MotorRolling"
 
 
+def scale_filter_config(config) -> CorrelationConfig | None:
+    """The correlation filter configuration whose scale filter sizes a tracker's box, or None.
+
+    ``mil``'s filter when its fusion runs it; the correlation detector's (``cf`` of the score-map trackers,
+    ``detections.cf`` of ``cbt``) when ``detector`` is ``cf``; None for anything else, and when the filter
+    searches several scales itself (``scale_factors``) or has no scale filter.
+    """
+    fusion = getattr(config, "fusion", None)
+    if fusion is not None:
+        candidates = [config.correlation] if fusion.uses_correlation else []
+    elif getattr(config, "detector", None) == "cf":
+        candidates = [getattr(config, "cf", None), getattr(getattr(config, "detections", None), "cf", None)]
+    else:
+        candidates = []
+    for candidate in candidates:
+        if (isinstance(candidate, CorrelationConfig) and candidate.scale_filter
+                and len(candidate.scale_factors) == 1):
+            return candidate
+    return None
+
+
 def tracker_scale_filter(name: str, settings: dict[str, str]) -> ScaleFilter:
     """The scale filter of tracker ``name`` with ``settings`` (``--set`` keys), as its correlation filter builds it.
 
     Raises
     ------
     UsageError
-        For an unknown tracker or setting.
-    ValueError
-        When the tracker has no correlation filter, or its scale filter is off.
+        For an unknown tracker or setting, and for a tracker whose box size does not come from a scale filter.
     """
     config = recipe_config(name, settings)
-    correlation = next((getattr(config, field) for field in getattr(config, "__dataclass_fields__", ())
-                        if isinstance(getattr(config, field), CorrelationConfig)), None)
+    correlation = scale_filter_config(config)
     if correlation is None:
-        raise ValueError(f"{name} has no correlation filter, hence no scale filter")
-    scale_filter = make_scale_filter(correlation)
-    if scale_filter is None:
-        raise ValueError(f"{name}'s scale filter is off in this configuration")
-    return scale_filter
+        raise UsageError(f"{name}'s box size does not come from a correlation filter's scale filter "
+                         "in this configuration")
+    return make_scale_filter(correlation)
 
 
 def true_centres(truth: np.ndarray) -> np.ndarray:
@@ -71,7 +92,7 @@ def true_centres(truth: np.ndarray) -> np.ndarray:
     return np.stack([np.interp(frames, rows, centres[rows, axis]) for axis in (0, 1)], axis=1)
 
 
-def follow_sizes(sequence, scale_filter: ScaleFilter) -> tuple[np.ndarray, np.ndarray]:
+def follow_sizes(sequence: BenchmarkSequence, scale_filter: ScaleFilter) -> tuple[np.ndarray, np.ndarray]:
     """The scale filter's sizes ``(N, 2)`` on ``sequence``'s run, fed the true centres; and the truth ``(N, 4)``.
 
     The filter starts on the first ground-truth box; in each later frame it estimates the scale change
@@ -81,6 +102,7 @@ def follow_sizes(sequence, scale_filter: ScaleFilter) -> tuple[np.ndarray, np.nd
     truth = np.asarray(sequence.ground_truth[start:stop], float)
     centres = true_centres(truth) - sequence.origin   # the sequence's convention -> 0-based pixels
     source = ImageFolderSource(sequence.path, files=list(sequence.files[start:stop]))
+    source.on_skip = lambda message: print(f"scale_drift: {sequence.name}: {message}", file=sys.stderr)
     sizes = []
     for k, frame in enumerate(source):
         if k == 0:
@@ -102,34 +124,31 @@ def size_ratios(sizes: np.ndarray, truth: np.ndarray) -> np.ndarray:
 
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("dataset")
-    parser.add_argument("--sequences", default=TUNE)
+    parser.add_argument("dataset", help="a benchmark folder (any layout vidtrack eval reads)")
+    parser.add_argument("--sequences", default=TUNE, help="comma-separated names (default: the tune split)")
     parser.add_argument("--filter", default="mil", help="the tracker whose scale filter runs (default mil)")
     parser.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
                         help="a setting of the tracker, as vidtrack --set takes it (repeat for several)")
     args = parser.parse_args(argv)
     try:
-        settings = dict(item.split("=", 1) for item in args.set)
-    except ValueError:
-        parser.error("--set takes KEY=VALUE")
-    try:
+        settings = dict(parse_setting(item) for item in args.set)
         tracker_scale_filter(args.filter, settings)   # a bad name or setting stops here, before any frame
         sequences = load_dataset(args.dataset, args.sequences.split(","))
-    except (VidtrackError, ValueError) as exc:
+        described = " ".join([args.filter, *(f"{k}={v}" for k, v in settings.items())])
+        print(f"Scale filter of `{described}` at the true centres: its size sqrt(w h) over the ground truth's\n")
+        print("| sequence | frames | annotated | last | mean abs log | largest abs log |")
+        print("|---|---:|---:|---:|---:|---:|")
+        means = []
+        for sequence in sequences:
+            sizes, truth = follow_sizes(sequence, tracker_scale_filter(args.filter, settings))
+            ratios = size_ratios(sizes, truth)
+            drift = np.abs(np.log(ratios))
+            means.append(float(drift.mean()))
+            print(f"| {sequence.name} | {len(sizes)} | {len(ratios)} | {ratios[-1]:.2f} | {drift.mean():.3f} "
+                  f"| {drift.max():.3f} |", flush=True)
+    except VidtrackError as exc:
         raise SystemExit(f"scale_drift: {exc}") from None
-    described = " ".join([args.filter, *args.set])
-    print(f"Scale filter of `{described}` at the true centres: its size sqrt(w h) over the ground truth's\n")
-    print("| sequence | frames | last | mean abs log | largest abs log |")
-    print("|---|---:|---:|---:|---:|")
-    means = []
-    for sequence in sequences:
-        sizes, truth = follow_sizes(sequence, tracker_scale_filter(args.filter, settings))
-        ratios = size_ratios(sizes, truth)
-        drift = np.abs(np.log(ratios))
-        means.append(float(drift.mean()))
-        print(f"| {sequence.name} | {len(sizes)} | {ratios[-1]:.2f} | {drift.mean():.3f} | {drift.max():.3f} |",
-              flush=True)
-    print(f"| **mean** | | | {np.mean(means):.3f} | |")
+    print(f"| **mean** | | | | {np.mean(means):.3f} | |")
     return 0
 
 
