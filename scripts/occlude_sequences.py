@@ -12,8 +12,12 @@ it covers some of the target for ``duration`` frames and the whole of it for
 ``2 duration`` frames before the crossing to as many after.  The
 direction alternates.  The bar is shaded like a cylinder in a colour drawn
 per crossing, with a little noise per frame (fixed by ``--seed``), so it is
-neither flat nor the target.  The ground truth is kept: the target is behind
-the bar, where the OTB convention annotates it::
+not flat.  The colour is drawn at random (``--bar-colour random``, so the
+bar is seldom like the target) or from the target's own pixels in its first
+annotated frame (``--bar-colour target``: an occluder that shares one of the
+target's colours, as a dark pole in front of a runner in dark clothes, which
+a tracker's colour cues take for the target).  The ground truth is kept:
+the target is behind the bar, where the OTB convention annotates it::
 
     python scripts/occlude_sequences.py ../shared/data/sequences /tmp/tune-occluded \\
         --sequences David,Sylvester,FaceOcc1,FaceOcc2,Girl,Tiger1,Tiger2,Man,Dancer2,Football1,Human9,Subway,MotorRolling
@@ -38,6 +42,7 @@ import sys
 from pathlib import Path
 from typing import NamedTuple
 
+import cv2
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
@@ -63,7 +68,7 @@ class Crossing(NamedTuple):
 
 
 def plan_crossings(truth: np.ndarray, annotated: np.ndarray, *, first: int, period: int, duration: float,
-                   width: float, rng: np.random.Generator) -> list[Crossing]:
+                   width: float, rng: np.random.Generator, palette: np.ndarray | None = None) -> list[Crossing]:
     """The crossings of a sequence of ``len(truth)`` frames, from its 0-based pixel boxes ``truth`` ``(N, 4)``.
 
     A crossing is planned at frames ``first, first + period, ...`` while its
@@ -71,7 +76,8 @@ def plan_crossings(truth: np.ndarray, annotated: np.ndarray, *, first: int, peri
     bar is ``width`` times the target's width at the nearest annotated row,
     and moves at the target's speed (the slope of its annotated centres
     within ``duration`` frames) plus ``(bar + target width) / duration``,
-    the sign alternating.
+    the sign alternating.  Its colour is uniform in ``[40, 200]`` per channel,
+    or, with a ``palette`` ``(M, 3)`` of colours, one of them at random.
     """
     rows = np.flatnonzero(annotated)
     crossings: list[Crossing] = []
@@ -87,7 +93,8 @@ def plan_crossings(truth: np.ndarray, annotated: np.ndarray, *, first: int, peri
         target_speed = (float(np.polyfit(near, truth[near, 0] + 0.5 * truth[near, 2], 1)[0])
                         if near.size >= 2 else 0.0)
         speed = target_speed + direction * (bar + w) / duration
-        colour = tuple(float(v) for v in rng.uniform(40.0, 200.0, 3))
+        drawn = rng.uniform(40.0, 200.0, 3) if palette is None else palette[rng.integers(len(palette))]
+        colour = tuple(float(v) for v in drawn)
         crossings.append(Crossing(frame, x + 0.5 * w, bar, speed, colour))
         frame += period
         direction = -direction
@@ -115,15 +122,37 @@ def draw_bar(image: np.ndarray, crossing: Crossing, k: int, rng: np.random.Gener
     return out
 
 
+def target_palette(sequence, truth: np.ndarray, annotated: np.ndarray) -> np.ndarray | None:
+    """The colours ``(M, 3)`` (BGR; grey repeated) of the target's pixels in its first annotated frame, or None."""
+    rows = np.flatnonzero(annotated)
+    if rows.size == 0:
+        return None
+    image = cv2.imread(str(sequence.files[rows[0]]), cv2.IMREAD_UNCHANGED)
+    if image is None:
+        raise SystemExit(f"cannot read {sequence.files[rows[0]]}")
+    x, y, w, h = truth[rows[0]]
+    x0, y0 = max(int(round(x)), 0), max(int(round(y)), 0)
+    patch = image[y0:max(int(round(y + h)), y0 + 1), x0:max(int(round(x + w)), x0 + 1)]
+    if patch.size == 0:
+        return None
+    pixels = patch.reshape(-1, 1 if patch.ndim == 2 else patch.shape[2])[:, :3].astype(float)
+    return np.repeat(pixels, 3, axis=1) if pixels.shape[1] == 1 else pixels
+
+
 def occlude_sequence(sequence, out: Path, *, first: int, period: int, duration: float, width: float,
-                     seed: int) -> tuple[int, int]:
-    """Write ``sequence`` with its crossings under ``out/<name>``; returns ``(frames, crossings)``."""
+                     seed: int, bar_colour: str = "random") -> tuple[int, int]:
+    """Write ``sequence`` with its crossings under ``out/<name>``; returns ``(frames, crossings)``.
+
+    ``bar_colour``: ``"random"`` or ``"target"`` (each bar takes the colour of one of the target's pixels
+    in its first annotated frame).
+    """
     annotated = annotated_rows(sequence.ground_truth)
     truth = np.array([sequence.to_pixels(sequence.ground_truth_box(row)).as_array() if ok else np.zeros(4)
                       for row, ok in enumerate(annotated)])
     rng = np.random.default_rng(seed)
+    palette = target_palette(sequence, truth, annotated) if bar_colour == "target" else None
     crossings = plan_crossings(truth, annotated, first=first, period=period, duration=duration, width=width,
-                               rng=rng)
+                               rng=rng, palette=palette)
     reach = 2.0 * duration   # frames either side of a crossing the bar is drawn: it appears well away from the target
 
     def image_map(k: int, image: np.ndarray) -> np.ndarray:
@@ -144,6 +173,9 @@ def main(argv=None) -> int:
                         help="frames the bar covers part of the target at each crossing (default 24)")
     parser.add_argument("--width", type=float, default=1.5, help="bar width in target widths (default 1.5)")
     parser.add_argument("--seed", type=int, default=0, help="seed of the bars' colours and noise (default 0)")
+    parser.add_argument("--bar-colour", choices=("random", "target"), default="random",
+                        help="each bar's colour: random, or one of the target's colours in its first frame "
+                             "(default random)")
     args = parser.parse_args(argv)
     if args.first < 0 or args.period <= 2 * args.duration or args.duration <= 0 or args.width <= 1.0:
         raise SystemExit("need --first >= 0, --duration > 0, --period > 2 * duration and --width > 1")
@@ -152,7 +184,8 @@ def main(argv=None) -> int:
     sequences = load_dataset(args.dataset, names)
     for sequence in sequences:
         frames, count = occlude_sequence(sequence, out, first=args.first, period=args.period,
-                                         duration=args.duration, width=args.width, seed=args.seed)
+                                         duration=args.duration, width=args.width, seed=args.seed,
+                                         bar_colour=args.bar_colour)
         print(f"{sequence.name}: {frames} frames, {count} crossings")
     copy_attributes(args.dataset, out, sequences)
     return 0

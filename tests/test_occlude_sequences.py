@@ -83,3 +83,24 @@ def test_a_bar_that_cannot_hide_the_target_or_crossings_that_overlap_are_refused
     write_sequence(tmp_path / "src" / "Still", frames=3)
     with pytest.raises(SystemExit, match="need"):
         occlude.main([str(tmp_path / "src"), str(tmp_path / "out"), *args])
+
+
+
+@pytest.mark.parametrize("mode", ["target", "random"])
+def test_a_target_coloured_bar_takes_one_of_the_targets_colours(occlude, tmp_path, mode):
+    """``--bar-colour target``: the middle of each bar (lit head-on) has a colour of the target's first frame.
+
+    The synthetic target is red and yellow; a random bar (each channel in 40 .. 200) is neither.
+    """
+    source = tmp_path / "src"
+    write_sequence(source / "Walker", frames=100, size=(200, 120), box=(30, 40, 20, 24), velocity=(1.0, 0.2))
+    argv = [str(source), str(tmp_path / "out"), "--first", "20", "--period", "40", "--duration", "8",
+            "--width", "1.5", "--bar-colour", mode]
+    assert occlude.main(argv) == 0
+    before, after = frames_of(source / "Walker" / "img"), frames_of(tmp_path / "out" / "Walker" / "img")
+    target = before[0][40:40 + 24, 30:30 + 20].reshape(-1, 3).astype(float)
+    for k in (20, 60):
+        columns = np.flatnonzero(np.any(after[k] != before[k], axis=(0, 2)))
+        middle = after[k][:, columns[len(columns) // 2]].astype(float).mean(axis=0)
+        nearest = np.min(np.linalg.norm(target - middle, axis=1))
+        assert (nearest < 25) == (mode == "target"), (k, middle, nearest)
