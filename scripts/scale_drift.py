@@ -49,13 +49,13 @@ TUNE = "David,Sylvester,FaceOcc1,FaceOcc2,Girl,Tiger1,Tiger2,Man,Dancer2,Footbal
 def scale_filter_config(config) -> CorrelationConfig | None:
     """The correlation filter configuration whose scale filter sizes a tracker's box, or None.
 
-    ``mil``'s filter when its fusion runs it; the correlation detector's (``cf`` of the score-map trackers,
+    ``mil``'s filter when the fusion takes the size from it (``fusion.size_from="cf"``); the correlation detector's (``cf`` of the score-map trackers,
     ``detections.cf`` of ``cbt``) when ``detector`` is ``cf``; None for anything else, and when the filter
     searches several scales itself (``scale_factors``) or has no scale filter.
     """
     fusion = getattr(config, "fusion", None)
     if fusion is not None:
-        candidates = [config.correlation] if fusion.uses_correlation else []
+        candidates = [config.correlation] if fusion.size_from == "cf" else []
     elif getattr(config, "detector", None) == "cf":
         candidates = [getattr(config, "cf", None), getattr(getattr(config, "detections", None), "cf", None)]
     else:

@@ -72,6 +72,7 @@ def test_a_wrong_size_shows_as_drift(drift, zooming):
     (["--filter", "mil-paper"], "does not come from a correlation filter's scale filter"),
     (["--filter", "nh-face"], "does not come from a correlation filter's scale filter"),
     (["--set", "correlation.scale_filter=false"], "does not come from a correlation filter's scale filter"),
+    (["--set", "fusion.size_from=inliers"], "does not come from a correlation filter's scale filter"),
     (["--set", "correlation.scale_factors=0.95,1,1.05"], "does not come from a correlation filter's scale filter"),
     (["--set", "correlation.no_such_option=1"], "unknown option"),
     (["--set", "no_equals_sign"], "--set takes KEY=VALUE"),

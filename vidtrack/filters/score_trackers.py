@@ -39,9 +39,9 @@ estimate's standard deviation in box sizes, and the cues of
 :mod:`vidtrack.filters.confidence_cues` read at the estimate: the first-frame
 verification ``verify``, ``verify_gap``, ``verify_size_gap``, ``colour`` and
 their running averages, the map's ``score_at``, ``peak_offset`` and
-``log_scale``, and the box's ``border_gap`` to the frame's edge; the packaged files use four cues each,
-chosen on *tune*, see
-``scripts/fit_confidence.py``), and the status is the calibration's
+``log_scale``, and the box's ``border_gap`` to the frame's edge; the packaged
+files use four cues each, chosen on *tune*, see ``scripts/fit_confidence.py``),
+and the status is the calibration's
 (:class:`~vidtrack.filters.calibration.LostRule`): ``lost`` when that
 probability has stayed below the file's ``lost_below`` for its
 ``lost_after`` frames in a row, or when the update was skipped (the
