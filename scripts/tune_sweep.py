@@ -13,6 +13,10 @@ must not depend on a lucky seed)::
         --config '' --config 'superpixels.slic=opencv' \\
         --config 'fusion.motion=0.1 fusion.min_quality=0.2' --seeds 0,1,2 --jobs 2
 
+``--group NAME=A,B,...`` (once per group) adds a table of each
+configuration's mean AUC per seed over just those sequences: whether a
+change helps the whole split or only a kind of sequence in it.
+
 A key the tracker does not take, or a value of the wrong type, stops the
 sweep before it starts.  It refuses sequences of the *validate* split: those
 are reported, never tuned on (``../shared/data/sequences/INDEX.md``).
@@ -63,6 +67,18 @@ def run_one(dataset: str, name: str, filter_name: str, settings: dict, seed: int
     return float(metrics.score(np.array(boxes), seq.ground_truth[start:stop])["auc"])
 
 
+def parse_group(text: str, names: list[str]) -> tuple[str, list[str]]:
+    """``NAME=A,B,...`` as ``(NAME, [A, B, ...])``; the sequences must be among the swept ``names``."""
+    name, sep, members = text.partition("=")
+    chosen = [m for m in members.split(",") if m]
+    if not sep or not name or not chosen:
+        raise ValueError(f"--group {text!r}: expected NAME=SEQUENCE,SEQUENCE,...")
+    unknown = [m for m in chosen if m not in names]
+    if unknown:
+        raise ValueError(f"--group {name}: {', '.join(unknown)} not among the swept sequences")
+    return name, chosen
+
+
 def label(settings: dict) -> str:
     """A configuration as the table shows it: its settings, ``KEY=VALUE`` separated by spaces."""
     return " ".join(f"{key}={value}" for key, value in settings.items()) or "(defaults)"
@@ -78,10 +94,16 @@ def main(argv=None) -> int:
     parser.add_argument("--seeds", default="0,1,2")
     parser.add_argument("--jobs", type=int, default=2)
     parser.add_argument("--json", help="write every per-sequence AUC here")
+    parser.add_argument("--group", action="append", default=[], metavar="NAME=A,B,...",
+                        help="also print the mean AUC over these sequences alone (repeat for several groups)")
     args = parser.parse_args(argv)
     names = args.sequences.split(",")
     if VALIDATE & set(names):
         parser.error(f"{sorted(VALIDATE & set(names))} belong to the validate split: never tune on them")
+    try:
+        groups = [parse_group(g, names) for g in args.group]
+    except ValueError as exc:
+        parser.error(str(exc))
     seeds = [int(s) for s in args.seeds.split(",")]
     try:
         configs = [parse_config(c) for c in (args.config or [""])]
@@ -104,6 +126,13 @@ def main(argv=None) -> int:
               + f" | **{np.mean(per_seed):.3f}** | {min(per_seed):.3f} | "
               + ", ".join(f"{n} {spread[n]:.2f}" for n in widest) + " |", flush=True)
         table.append({"settings": c, "auc": {n: {s: results[i, s, n] for s in seeds} for n in names}})
+    for group, members in groups:
+        print(f"\n{group} ({', '.join(members)}): mean AUC per seed\n")
+        print("| config | " + " | ".join(f"seed {s}" for s in seeds) + " | mean |")
+        print("|---|" + "---|" * (len(seeds) + 1))
+        for i, c in enumerate(configs):
+            per_seed = [np.mean([results[i, s, n] for n in members]) for s in seeds]
+            print(f"| `{label(c)}` | " + " | ".join(f"{v:.3f}" for v in per_seed) + f" | **{np.mean(per_seed):.3f}** |")
     if args.json:
         Path(args.json).write_text(json.dumps(table, indent=1))
     return 0

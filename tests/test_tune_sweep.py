@@ -1,0 +1,68 @@
+"""scripts/tune_sweep.py: the table of a sweep, its groups of sequences, and what it refuses."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+
+import pytest
+
+from conftest import REPO
+from vidtrack.eval.synthetic import write_sequence
+
+SCRIPT = REPO / "scripts" / "tune_sweep.py"
+
+
+def sweep(*argv: str) -> subprocess.CompletedProcess:
+    return subprocess.run([sys.executable, str(SCRIPT), *argv], capture_output=True, text=True, timeout=300)
+
+
+@pytest.fixture(scope="module")
+def two_walkers(tmp_path_factory):
+    """Two short sequences: one the mean-shift tracker follows, one whose target runs fast."""
+    root = tmp_path_factory.mktemp("sweep")
+    write_sequence(root / "Slow", frames=20, size=(160, 120), box=(30, 40, 24, 28), velocity=(1.0, 0.5))
+    write_sequence(root / "Fast", frames=20, size=(160, 120), box=(20, 40, 24, 28), velocity=(5.0, 1.0), seed=1)
+    return root
+
+
+def group_rows(stdout: str, group: str) -> list[str]:
+    """The rows of the table printed for ``group``."""
+    lines = stdout.splitlines()
+    start = next(k for k, line in enumerate(lines) if line.startswith(f"{group} ("))
+    return [line for line in lines[start + 1:] if line.startswith("| `")][:2]
+
+
+def test_a_group_table_holds_the_mean_over_its_sequences_alone(two_walkers, tmp_path):
+    out = tmp_path / "sweep.json"
+    done = sweep(str(two_walkers), "--filter", "ms", "--sequences", "Slow,Fast", "--seeds", "0,1", "--jobs", "1",
+                 "--config", "", "--config", "bins=8", "--group", "slow=Slow", "--group", "both=Slow,Fast",
+                 "--json", str(out))
+    assert done.returncode == 0, done.stderr
+    table = json.loads(out.read_text())
+    for group, members in (("slow", ["Slow"]), ("both", ["Slow", "Fast"])):
+        rows = group_rows(done.stdout, group)
+        assert len(rows) == 2
+        for row, config in zip(rows, table):
+            cells = [c.strip().strip("*") for c in row.split("|")[2:-1]]
+            per_seed = [sum(config["auc"][m][s] for m in members) / len(members) for s in ("0", "1")]
+            assert [float(c) for c in cells[:2]] == pytest.approx(per_seed, abs=5e-4)
+            assert float(cells[2]) == pytest.approx(sum(per_seed) / 2, abs=5e-4)
+    slow = [float(c.strip().strip("*")) for c in group_rows(done.stdout, "slow")[0].split("|")[2:-1]]
+    both = [float(c.strip().strip("*")) for c in group_rows(done.stdout, "both")[0].split("|")[2:-1]]
+    assert slow != both   # the groups differ: the fast target is followed worse
+
+
+@pytest.mark.parametrize("group, message", [("slow=Slow,Dancer", "Dancer not among the swept sequences"),
+                                            ("slow", "expected NAME=SEQUENCE"),
+                                            ("=Slow", "expected NAME=SEQUENCE")])
+def test_a_bad_group_stops_the_sweep_before_it_runs(two_walkers, group, message):
+    done = sweep(str(two_walkers), "--filter", "ms", "--sequences", "Slow,Fast", "--group", group)
+    assert done.returncode == 2 and message in done.stderr and "Traceback" not in done.stderr
+    assert done.stdout == ""
+
+
+def test_a_validate_sequence_is_refused(two_walkers):
+    done = sweep(str(two_walkers), "--filter", "ms", "--sequences", "Slow,Dog")
+    assert done.returncode == 2 and "validate split" in done.stderr and "Traceback" not in done.stderr
