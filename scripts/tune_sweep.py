@@ -1,4 +1,4 @@
-"""Sweep a tracker's settings on the *tune* split at several seeds: the protocol defaults are chosen by.
+"""Sweep a tracker's settings on the *tune* split at several seeds (how defaults are chosen).
 
 Each configuration is a set of settings with the keys ``vidtrack --set``
 takes (dotted for a group: ``fusion.motion``), given as ``KEY=VALUE`` pairs
@@ -13,12 +13,14 @@ must not depend on a lucky seed)::
         --config '' --config 'superpixels.slic=opencv' \\
         --config 'fusion.motion=0.1 fusion.min_quality=0.2' --seeds 0,1,2 --jobs 2
 
-``--group NAME=A,B,...`` (once per group) adds a table of each
-configuration's mean AUC per seed over just those sequences: whether a
-change helps the whole split or only a kind of sequence in it.
+``--group NAME=A,B,...`` (once per group; the sequences among those swept)
+adds a table of each configuration's mean AUC per seed, and over the seeds,
+over just those sequences: whether a change helps the whole split or only a
+kind of sequence in it.
 
-A key the tracker does not take, or a value of the wrong type, stops the
-sweep before it starts.  It refuses sequences of the *validate* split: those
+A key the tracker does not take, a value of the wrong type, a malformed
+``--seeds`` or ``--group`` stops the sweep before it starts, with one line
+on stderr and exit status 2.  It refuses sequences of the *validate* split: those
 are reported, never tuned on (``../shared/data/sequences/INDEX.md``).
 Per-sequence AUCs go to ``--json``.
 """
@@ -30,6 +32,7 @@ import json
 import sys
 from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
+from typing import NoReturn
 
 import numpy as np
 
@@ -68,14 +71,17 @@ def run_one(dataset: str, name: str, filter_name: str, settings: dict, seed: int
 
 
 def parse_group(text: str, names: list[str]) -> tuple[str, list[str]]:
-    """``NAME=A,B,...`` as ``(NAME, [A, B, ...])``; the sequences must be among the swept ``names``."""
+    """``NAME=A,B,...`` as ``(NAME, [A, B, ...])``; the sequences must be among the swept ``names``, once each."""
     name, sep, members = text.partition("=")
-    chosen = [m for m in members.split(",") if m]
+    name = name.strip()
+    chosen = [m.strip() for m in members.split(",") if m.strip()]
     if not sep or not name or not chosen:
         raise ValueError(f"--group {text!r}: expected NAME=SEQUENCE,SEQUENCE,...")
     unknown = [m for m in chosen if m not in names]
     if unknown:
         raise ValueError(f"--group {name}: {', '.join(unknown)} not among the swept sequences")
+    if len(set(chosen)) < len(chosen):
+        raise ValueError(f"--group {name}: a sequence is named twice")
     return name, chosen
 
 
@@ -97,20 +103,29 @@ def main(argv=None) -> int:
     parser.add_argument("--group", action="append", default=[], metavar="NAME=A,B,...",
                         help="also print the mean AUC over these sequences alone (repeat for several groups)")
     args = parser.parse_args(argv)
+
+    def stop(message: str) -> NoReturn:
+        parser.exit(2, f"tune_sweep.py: {message}\n")
+
     names = args.sequences.split(",")
     if VALIDATE & set(names):
-        parser.error(f"{sorted(VALIDATE & set(names))} belong to the validate split: never tune on them")
+        stop(f"{', '.join(sorted(VALIDATE & set(names)))} belong to the validate split: never tune on them")
+    try:
+        seeds = [int(s) for s in args.seeds.split(",")]
+    except ValueError:
+        stop(f"--seeds {args.seeds!r}: expected integers separated by commas")
     try:
         groups = [parse_group(g, names) for g in args.group]
     except ValueError as exc:
-        parser.error(str(exc))
-    seeds = [int(s) for s in args.seeds.split(",")]
+        stop(str(exc))
+    if len({name for name, _ in groups}) < len(groups):
+        stop("two --group share a name")
     try:
         configs = [parse_config(c) for c in (args.config or [""])]
         for settings in configs:   # a bad key or value stops the sweep here, not in a worker
             recipe_config(args.filter, settings)
     except UsageError as exc:
-        parser.error(str(exc))
+        stop(str(exc))
     with ProcessPoolExecutor(args.jobs) as pool:
         futures = {(i, s, n): pool.submit(run_one, args.dataset, n, args.filter, c, s)
                    for i, c in enumerate(configs) for s in seeds for n in names}
