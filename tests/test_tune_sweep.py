@@ -34,6 +34,11 @@ def group_rows(stdout: str, group: str) -> list[str]:
     return [line for line in lines[start + 1:] if line.startswith("| `")][:2]
 
 
+def cells(row: str) -> list[float]:
+    """The numbers of a table row (its first cell, the configuration, left out)."""
+    return [float(c.strip().strip("*")) for c in row.split("|")[2:-1]]
+
+
 def test_a_group_table_holds_the_mean_over_its_sequences_alone(two_walkers, tmp_path):
     out = tmp_path / "sweep.json"
     done = sweep(str(two_walkers), "--filter", "ms", "--sequences", "Slow,Fast", "--seeds", "0,1", "--jobs", "1",
@@ -45,12 +50,11 @@ def test_a_group_table_holds_the_mean_over_its_sequences_alone(two_walkers, tmp_
         rows = group_rows(done.stdout, group)
         assert len(rows) == 2
         for row, config in zip(rows, table):
-            cells = [c.strip().strip("*") for c in row.split("|")[2:-1]]
+            values = cells(row)
             per_seed = [sum(config["auc"][m][s] for m in members) / len(members) for s in ("0", "1")]
-            assert [float(c) for c in cells[:2]] == pytest.approx(per_seed, abs=5e-4)
-            assert float(cells[2]) == pytest.approx(sum(per_seed) / 2, abs=5e-4)
-    slow = [float(c.strip().strip("*")) for c in group_rows(done.stdout, "slow")[0].split("|")[2:-1]]
-    both = [float(c.strip().strip("*")) for c in group_rows(done.stdout, "both")[0].split("|")[2:-1]]
+            assert values[:2] == pytest.approx(per_seed, abs=5e-4)
+            assert values[2] == pytest.approx(sum(per_seed) / 2, abs=5e-4)
+    slow, both = (cells(group_rows(done.stdout, group)[0]) for group in ("slow", "both"))
     assert slow != both   # the groups differ: the fast target is followed worse
 
 
