@@ -21,7 +21,9 @@ a frame it reports lost as an unmeasured one (``fusion.search_when_lost``), and
 the score-map trackers and ``cbt``, whose detector re-detects while they report
 lost and learns only while they report tracking, so their boxes follow their
 lost rule.
-``--select`` prints the cue selection described below.  ``--cache DIR``
+``--select`` prints the cue selection described below, and ``--compare
+a,b,...`` (repeatable) the same held-out figures for a set of cues of one's
+own on the same frames, to weigh a set against the packaged one.  ``--cache DIR``
 keeps the frames to refit without tracking again; ``--table`` prints false
 lost and missed loss at every threshold (``mil``: of its lost rule, on the
 held-out frames).
@@ -79,9 +81,10 @@ OUT = Path(__file__).resolve().parents[1] / "vidtrack" / "filters" / "calibratio
 #: The cues the packaged files use, chosen on tune by forward selection on :func:`held_out_auc` (fit on 12
 #: sequences, score the 13th, pooled).  mil: the running verification, the inlier coverage, the presence
 #: flag, the colour likelihood and the verification gap (0.946 on the packaged tracker's frames, where the
-#: selection stops at the first four, 0.944; the quality, PSR and inlier coverage 0.922; all of
-#: :data:`~vidtrack.filters.mil.CUES` 0.913; with the border gap added 0.936, and added to the presence
-#: model it raises the held-out cost of the lost rule there from 1.27 to 1.30).  The
+#: selection stops at the first four, 0.944; ``--compare`` gives, on the same frames, the quality, PSR and
+#: inlier coverage 0.922, all of :data:`~vidtrack.filters.mil.CUES` 0.913, the five with the border gap
+#: 0.936, and the border gap added to the presence model raises the held-out cost of the lost rule from
+#: 1.27 to 1.30).  The
 #: score-map trackers and cbt, likewise, on the uncalibrated tracker's frames.  nh: the running colour
 #: likelihood, the verification gap, the map's quality and the box's gap to the frame's border (0.935; without
 #: the border gap 0.924; forward selection takes the actions' spread instead of the quality, 0.934; the
@@ -351,6 +354,36 @@ def select_presence_cues(table, rows: list[dict], ious: np.ndarray, C: float = 1
     return tuple(chosen), lines
 
 
+def compare_cue_sets(table, sets, rows: list[dict], ious: np.ndarray, C: float = 1.0,
+                     presence: bool = False) -> list[str]:
+    """The held-out figures of each set of cue names in ``sets`` on the same frames, a line per set.
+
+    Each line holds the leave-one-sequence-out ROC AUC of a confidence on those cues (:func:`held_out_auc`)
+    and, with ``presence``, the cost of the lost rule with them as the presence cues (the rule chosen on
+    the held-out presence as the fit chooses it: :func:`held_out_presence`, :func:`choose_lost_rule`).
+    A cue that no frame carries (one the tracker does not compute, or frames cached by an older tracker)
+    is said so at the end of its line: its fill value stands in for it.
+    """
+    table = tuple(table)
+    X = cue_matrix(table, rows)
+    starts, forced = run_starts(rows), unmeasured_rows(rows)
+    lines = []
+    for names in sets:
+        cues = tuple(next(c for c in table if c[0] == n) for n in names)
+        columns = [table.index(c) for c in cues]
+        line = f"  {', '.join(names)}: held-out ROC AUC {held_out_auc(cues, rows, ious, C, X[:, columns]):.3f}"
+        if presence:
+            held = held_out_presence(X[:, columns], rows, ious, C)
+            t, k, fl, ml = choose_lost_rule(held, ious, starts, forced)
+            line += (f"; as the presence cues, held-out cost {lost_rule_cost(fl, ml):.2f} (below {t:.2f} for {k} "
+                     f"frame(s): false lost {fl:.3f}, missed loss {ml:.3f})")
+        absent = [n for n in names if not any(n in r for r in rows)]
+        if absent:
+            line += f" [no frame carries {', '.join(absent)}: its fill value stands in]"
+        lines.append(line)
+    return lines
+
+
 def logistic_fit(cues, rows: list[dict], labels: np.ndarray, C: float, lost_below: float = 0.5) -> Calibration:
     """Logistic regression of the bool ``labels`` on the standardised, clipped ``cues`` of ``rows``."""
     from sklearn.linear_model import LogisticRegression
@@ -404,6 +437,9 @@ def main(argv=None) -> int:
     parser.add_argument("--select", action="store_true",
                         help="also print the forward selection of the confidence's cues by held-out ROC AUC, and "
                              "of mil's presence cues by the held-out lost rule's cost")
+    parser.add_argument("--compare", action="append", default=[], metavar="CUE,CUE,...",
+                        help="also print the held-out figures of this set of cues on the same frames (repeatable; "
+                             "each set must be cues of every tracker named)")
     parser.add_argument("--passes", type=int, default=1,
                         help="2: refit on the frames of the tracker run with the first pass's calibration "
                              "(its status feeds back into its search); writes the packaged files")
@@ -415,6 +451,19 @@ def main(argv=None) -> int:
     unknown = [n for n in names if n not in TRACKERS]
     if unknown:
         parser.error(f"no calibration for {unknown[0]!r}; valid: {', '.join(TRACKERS)}")
+    args.compare = [tuple(c.strip() for c in spec.split(",")) for spec in args.compare]
+    for spec in args.compare:
+        twice = sorted({c for c in spec if spec.count(c) > 1})
+        if twice:
+            print(f"fit_confidence: --compare {','.join(spec)}: {twice[0]!r} is named twice", file=sys.stderr)
+            return 2
+        for name in names:
+            known = {c[0] for c in SELECT_FROM[name]}
+            bad = [c for c in spec if c not in known]
+            if bad:
+                print(f"fit_confidence: --compare {','.join(spec)}: {bad[0]!r} is not a cue of {name} "
+                      f"({', '.join(sorted(known))})", file=sys.stderr)
+                return 2
     sequences = load_dataset(args.dataset, args.sequences.split(","))
     seeds = [int(s) for s in args.seeds.split(",")]
     for name in names:
@@ -473,6 +522,10 @@ def fit_pass(name, sequences, seeds, args, *, calibrated: bool):
             chosen, lines = select_presence_cues(SELECT_FROM[name], rows, ious, args.C)
             print("  presence, IoU > 0, on the held-out lost rule:\n" + "\n".join(lines)
                   + f"\n  selected: {', '.join(c[0] for c in chosen)}", flush=True)
+    if args.compare:
+        print("  cue sets compared on these frames:\n"
+              + "\n".join(compare_cue_sets(SELECT_FROM[name], args.compare, rows, ious, args.C,
+                                           presence=name in PRESENCE_CUES)), flush=True)
     if held is not None:   # the lost rule on frames the fit has not seen
         starts, forced = run_starts(rows), unmeasured_rows(rows)
         status = np.where((low_runs(held, starts, cal.lost_below) >= cal.lost_after) | forced, conf_metrics.LOST,

@@ -126,13 +126,9 @@ def test_a_score_map_tracker_reads_its_lost_rule_from_its_own_held_out_confidenc
     assert (status == "lost").tolist() == [k == 30 for k in range(80)]
 
 
-def test_the_presence_cues_are_chosen_on_the_held_out_lost_rule(fit):
-    """The selection follows the lost rule's cost, not the ranking: the cue whose dips are single frames goes first.
-
-    ``a`` is high on the target but drops below every lost frame for single frames, which costs it ranking
-    but not the rule (two low frames in a row); ``b`` ranks better but overlaps over whole runs; ``noise``
-    says nothing.
-    """
+def _a_and_b_frames():
+    """Four sequences whose target is away in frames 60-79: ``a`` dips for single frames on the target,
+    ``b`` overlaps the away frames over whole runs, ``noise`` says nothing; the table holds ``b`` and ``a``."""
     rng = np.random.default_rng(2)
     rows, ious = [], []
     for name in "ABCD":
@@ -142,8 +138,18 @@ def test_the_presence_cues_are_chosen_on_the_held_out_lost_rule(fit):
             b = rng.uniform(0.0, 0.45) if away else rng.uniform(0.35, 1.0)
             rows.append({"sequence": name, "seed": 0, "a": a, "b": b, "noise": rng.uniform(0, 1)})
             ious.append(0.0 if away else 0.6)
-    ious = np.array(ious)
-    table = (("noise", 0.0, 0.0, 1.0), ("b", 0.0, 0.0, 1.0), ("a", 0.0, 0.0, 30.0))
+    return rows, np.array(ious), (("b", 0.0, 0.0, 1.0), ("a", 0.0, 0.0, 30.0))
+
+
+def test_the_presence_cues_are_chosen_on_the_held_out_lost_rule(fit):
+    """The selection follows the lost rule's cost, not the ranking: the cue whose dips are single frames goes first.
+
+    ``a`` is high on the target but drops below every lost frame for single frames, which costs it ranking
+    but not the rule (two low frames in a row); ``b`` ranks better but overlaps over whole runs; ``noise``
+    says nothing.
+    """
+    rows, ious, table = _a_and_b_frames()
+    table = (("noise", 0.0, 0.0, 1.0),) + table
     by_ranking, _ = fit.select_cues(table, rows, ious, 1.0)   # the confidence's selection, by held-out ROC AUC
     assert by_ranking[0][0] == "b"
     chosen, lines = fit.select_presence_cues(table, rows, ious, 1.0)
@@ -158,4 +164,37 @@ def test_a_second_pass_refuses_a_file_the_tracker_would_not_read(fit, tmp_path, 
         fit.main([str(tmp_path / "no-dataset"), "--trackers", "mil", "--passes", "2", "--out", str(tmp_path)])
     assert stop.value.code == 2
     assert "--passes 2" in capsys.readouterr().err
+    assert not any(tmp_path.iterdir())
+
+
+def test_compared_cue_sets_get_the_held_out_figures_the_selection_uses(fit):
+    """Each set's line holds its held-out ROC AUC and, as presence cues, its lost rule's held-out cost."""
+    rows, ious, table = _a_and_b_frames()
+    lines = fit.compare_cue_sets(table, [("a",), ("b",), ("a", "b")], rows, ious, 1.0, presence=True)
+    assert [line.split(":")[0].strip() for line in lines] == ["a", "b", "a, b"]
+    auc = [float(line.split("ROC AUC ")[1].split(";")[0]) for line in lines]
+    cost = [float(line.split("held-out cost ")[1].split(" ")[0]) for line in lines]
+    assert auc[1] > auc[0] and cost[0] < cost[1]   # b ranks better, a gives the better lost rule
+    assert auc[2] == pytest.approx(fit.held_out_auc(table, rows, ious, 1.0), abs=5e-4)
+    held = fit.held_out_presence(fit.cue_matrix(table[1:], rows), rows, ious, 1.0)
+    starts, forced = fit.run_starts(rows), fit.unmeasured_rows(rows)
+    assert cost[0] == pytest.approx(fit.lost_rule_cost(*fit.choose_lost_rule(held, ious, starts, forced)[2:]),
+                                    abs=5e-3)
+    plain = fit.compare_cue_sets(table, [("b",)], rows, ious, 1.0)
+    assert "cost" not in plain[0] and plain[0].startswith(lines[1].split(";")[0])
+    assert not any("no frame carries" in line for line in lines + plain)
+    unseen = fit.compare_cue_sets(table + (("never", 0.0, 0.0, 1.0),), [("b", "never")], rows, ious, 1.0)
+    assert unseen[0].endswith("[no frame carries never: its fill value stands in]")
+
+
+@pytest.mark.parametrize("trackers, spec, says", [
+    ("mil", "psr,no_such_cue", "'no_such_cue' is not a cue of mil"),
+    ("mil", "psr,psr", "'psr' is named twice"),
+    ("mil", "", "'' is not a cue of mil"),
+    ("mil,nh", "present,psr", "'present' is not a cue of nh"),   # a set must suit every tracker named
+])
+def test_a_bad_compared_set_stops_before_tracking(fit, tmp_path, capsys, trackers, spec, says):
+    code = fit.main([str(tmp_path / "no-dataset"), "--trackers", trackers, "--compare", spec, "--out", str(tmp_path)])
+    err = capsys.readouterr().err
+    assert code == 2 and says in err and len(err.strip().splitlines()) == 1
     assert not any(tmp_path.iterdir())
