@@ -10,6 +10,7 @@ import pytest
 from vidtrack.eval.confidence import roc_auc
 from vidtrack.eval.metrics import iou
 from vidtrack.filters import cbt as cbt_filter
+from vidtrack.filters import mil as mil_filter
 from vidtrack.filters import score_trackers
 from vidtrack.filters.calibration import Calibration, load_calibration
 from vidtrack.filters.confidence_cues import border_cues, map_value, verification_cues
@@ -167,6 +168,20 @@ def test_calibrated_confidence_ranks_the_lost_frames_below_the_tracked_ones(name
     assert roc_auc(confidence, good) > 0.9
     assert np.median(confidence[good]) > 0.5 > np.median(confidence[-10:])
     assert {"verify", "verify_gap", "colour", "coast"} <= set(states[-1].scalars)
+
+
+@pytest.mark.parametrize(("name", "cues"), [("mil", mil_filter.CUES), ("nh", score_trackers.CUES),
+                                            ("pf", score_trackers.CUES), ("bayes", score_trackers.CUES),
+                                            ("cbt", cbt_filter.CUES)])
+def test_every_cue_of_a_trackers_table_is_one_its_frames_carry(name, cues):
+    # a cue the tracker never computes would be fitted (and selected) on its fill value alone
+    frames, boxes = _vanishing_clip()
+    tracker = build_tracker(name, seed=0)
+    tracker.initialize(frames[0], boxes[0])
+    carried = set()
+    for frame in frames[1:]:
+        carried |= set(tracker.step(frame).scalars)
+    assert {c[0] for c in cues} <= carried, sorted({c[0] for c in cues} - carried)
 
 
 @pytest.mark.parametrize(("name", "cues"), [("nh", score_trackers.CUES), ("pf", score_trackers.CUES),

@@ -67,7 +67,8 @@ CUES = (
     ("coast", 0.0, 0.0, 6.0),
     ("present", 0.0, 0.0, 1.0),
     ("cue_agreement", 1.0, 0.0, 2.0),
-    *VERIFICATION_CUES,
+    # mil's verification matches the box at its own size only (no ``size_factors``): no ``verify_size_gap``
+    *(cue for cue in VERIFICATION_CUES if cue[0] != "verify_size_gap"),
     *RUNNING_CUES,
     *POSITION_CUES,
 )
