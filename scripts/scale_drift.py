@@ -18,6 +18,12 @@ the annotated frames: at the last one, and the mean and the largest
     python scripts/scale_drift.py ../shared/data/sequences --sequences Human9,Girl --filter mil
     python scripts/scale_drift.py ../shared/data/sequences --filter nh --set cf.scale_rate=0.01
 
+``--trace DIR`` also writes, per sequence, ``DIR/<sequence>.csv``: for every
+frame the filter's size, the ground truth's (blank where not annotated) and
+the ratio of their ``sqrt(w h)``, to see when the size drifts::
+
+    python scripts/scale_drift.py ../shared/data/sequences --sequences Human9 --filter mil --trace DIR
+
 Nothing bounds the size here (the trackers clamp it to a range of the first
 frame's), so a drift shows in full.  A tracker whose box size does not come
 from a scale filter (``mil-paper``, a detector other than ``cf``, a scale
@@ -27,6 +33,7 @@ search over several ``scale_factors``) is refused.
 from __future__ import annotations
 
 import argparse
+import csv
 import sys
 from pathlib import Path
 
@@ -122,6 +129,25 @@ def size_ratios(sizes: np.ndarray, truth: np.ndarray) -> np.ndarray:
     return np.sqrt(np.prod(sizes[valid], axis=1) / np.prod(truth[valid, 2:], axis=1))
 
 
+def write_trace(path: Path, sizes: np.ndarray, truth: np.ndarray) -> None:
+    """Per frame: ``frame, width, height`` of ``sizes``, the ground truth's and the ratio of their ``sqrt(w h)``.
+
+    The ground truth's cells and the ratio are blank on rows that are not annotated.
+    """
+    valid = annotated_rows(truth)
+    with path.open("w", newline="", encoding="utf-8") as out:
+        writer = csv.writer(out)
+        writer.writerow(["frame", "width", "height", "true_width", "true_height", "ratio"])
+        for k, (size, box, annotated) in enumerate(zip(sizes, truth, valid)):
+            row = [k, f"{size[0]:.2f}", f"{size[1]:.2f}"]
+            if annotated:
+                ratio = np.sqrt(size[0] * size[1] / (box[2] * box[3]))
+                row += [f"{box[2]:.2f}", f"{box[3]:.2f}", f"{ratio:.4f}"]
+            else:
+                row += ["", "", ""]
+            writer.writerow(row)
+
+
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("dataset", help="a benchmark folder (any layout vidtrack eval reads)")
@@ -129,7 +155,14 @@ def main(argv=None) -> int:
     parser.add_argument("--filter", default="mil", help="the tracker whose scale filter runs (default mil)")
     parser.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
                         help="a setting of the tracker, as vidtrack --set takes it (repeat for several)")
+    parser.add_argument("--trace", type=Path, metavar="DIR",
+                        help="also write each sequence's sizes per frame to DIR/<sequence>.csv")
     args = parser.parse_args(argv)
+    if args.trace is not None:
+        try:
+            args.trace.mkdir(parents=True, exist_ok=True)
+        except OSError as exc:
+            raise SystemExit(f"scale_drift: --trace {args.trace}: {exc.strerror or exc}") from None
     try:
         settings = dict(parse_setting(item) for item in args.set)
         tracker_scale_filter(args.filter, settings)   # a bad name or setting stops here, before any frame
@@ -141,6 +174,8 @@ def main(argv=None) -> int:
         means = []
         for sequence in sequences:
             sizes, truth = follow_sizes(sequence, tracker_scale_filter(args.filter, settings))
+            if args.trace is not None:
+                write_trace(args.trace / f"{sequence.name}.csv", sizes, truth)
             ratios = size_ratios(sizes, truth)
             drift = np.abs(np.log(ratios))
             means.append(float(drift.mean()))

@@ -87,3 +87,27 @@ def test_a_missing_dataset_stops_with_one_line(drift, tmp_path):
     with pytest.raises(SystemExit) as stop:
         drift.main([str(tmp_path / "nowhere")])
     assert str(stop.value).startswith("scale_drift: ") and "\n" not in str(stop.value)
+
+
+def test_the_trace_holds_every_frame_and_the_tables_ratios(drift, zooming, tmp_path, capsys):
+    import csv
+
+    assert drift.main([str(zooming), "--sequences", "Shrink", "--filter", "nh", "--trace", str(tmp_path / "t")]) == 0
+    frames, annotated, last, mean_drift, largest = table_rows(capsys.readouterr().out)["Shrink"]
+    with (tmp_path / "t" / "Shrink.csv").open(newline="", encoding="utf-8") as f:
+        rows = list(csv.DictReader(f))
+    assert [int(r["frame"]) for r in rows] == list(range(int(frames)))
+    scored = [r for r in rows if r["ratio"]]
+    assert len(scored) == int(annotated) and all(not r["true_width"] for r in rows if not r["ratio"])
+    ratios = np.array([float(r["ratio"]) for r in scored])
+    assert ratios[-1] == pytest.approx(float(last), abs=0.005)
+    assert np.abs(np.log(ratios)).mean() == pytest.approx(float(mean_drift), abs=0.001)
+    # the estimate shrinks with the target: the last frame's width is about 0.75 of the first's
+    assert float(rows[-1]["width"]) / float(rows[0]["width"]) == pytest.approx(0.75, abs=0.05)
+
+
+def test_a_trace_folder_that_cannot_be_made_stops_with_one_line(drift, zooming, tmp_path):
+    (tmp_path / "file").write_text("not a folder", encoding="utf-8")
+    with pytest.raises(SystemExit) as stop:
+        drift.main([str(zooming), "--sequences", "Shrink", "--trace", str(tmp_path / "file" / "t")])
+    assert str(stop.value).startswith("scale_drift: --trace ") and "\n" not in str(stop.value)
