@@ -129,22 +129,20 @@ def size_ratios(sizes: np.ndarray, truth: np.ndarray) -> np.ndarray:
     return np.sqrt(np.prod(sizes[valid], axis=1) / np.prod(truth[valid, 2:], axis=1))
 
 
-def write_trace(path: Path, sizes: np.ndarray, truth: np.ndarray) -> None:
+def write_trace(path: Path, sizes: np.ndarray, truth: np.ndarray, ratios: np.ndarray) -> None:
     """Per frame: ``frame, width, height`` of ``sizes``, the ground truth's and the ratio of their ``sqrt(w h)``.
 
-    The ground truth's cells and the ratio are blank on rows that are not annotated.
+    ``ratios``: :func:`size_ratios` of ``sizes`` and ``truth`` (one per annotated row, in order).  The
+    ground truth's cells and the ratio are blank on rows that are not annotated.
     """
     valid = annotated_rows(truth)
+    ratios = iter(ratios)
     with path.open("w", newline="", encoding="utf-8") as out:
         writer = csv.writer(out)
         writer.writerow(["frame", "width", "height", "true_width", "true_height", "ratio"])
         for k, (size, box, annotated) in enumerate(zip(sizes, truth, valid)):
             row = [k, f"{size[0]:.2f}", f"{size[1]:.2f}"]
-            if annotated:
-                ratio = np.sqrt(size[0] * size[1] / (box[2] * box[3]))
-                row += [f"{box[2]:.2f}", f"{box[3]:.2f}", f"{ratio:.4f}"]
-            else:
-                row += ["", "", ""]
+            row += [f"{box[2]:.2f}", f"{box[3]:.2f}", f"{next(ratios):.4f}"] if annotated else ["", "", ""]
             writer.writerow(row)
 
 
@@ -174,9 +172,9 @@ def main(argv=None) -> int:
         means = []
         for sequence in sequences:
             sizes, truth = follow_sizes(sequence, tracker_scale_filter(args.filter, settings))
-            if args.trace is not None:
-                write_trace(args.trace / f"{sequence.name}.csv", sizes, truth)
             ratios = size_ratios(sizes, truth)
+            if args.trace is not None:
+                write_trace(args.trace / f"{sequence.name}.csv", sizes, truth, ratios)
             drift = np.abs(np.log(ratios))
             means.append(float(drift.mean()))
             print(f"| {sequence.name} | {len(sizes)} | {len(ratios)} | {ratios[-1]:.2f} | {drift.mean():.3f} "
