@@ -116,6 +116,41 @@ def missed_loss(ious, status) -> float:
     return float(np.mean(ious[tracking] <= 0)) if tracking.any() else float("nan")
 
 
+def failure_spans(rows, ious, confidence, status) -> list[dict[str, float]]:
+    """The runs of consecutive scored frames whose box misses the target (``IoU = 0``), and what the tracker said.
+
+    A loss the tracker did not notice shows as a span of ``tracking`` frames
+    at low confidence (the confidence knew, the ``lost`` rule did not fire) or
+    at high confidence (neither knew): :func:`missed_loss` pools both.
+
+    Parameters
+    ----------
+    rows
+        Ground-truth row of each scored frame, increasing (unannotated rows
+        between two scored frames do not break a span).
+    ious, confidence, status
+        Per scored frame.
+
+    Returns
+    -------
+    list of dict
+        One per span, in order: ``first`` and ``last`` (ground-truth rows),
+        ``frames`` (scored frames in it), ``confidence`` (their mean) and
+        ``lost`` (the fraction marked ``lost``).
+    """
+    rows = np.asarray(rows, dtype=int)
+    missed = np.asarray(ious, dtype=float) <= 0
+    confidence, lost = np.asarray(confidence, dtype=float), np.asarray(status) == LOST
+    # a span starts at a missed frame after a hit (or the start) and ends before the next hit
+    edges = np.flatnonzero(np.diff(np.concatenate([[0], missed.astype(np.int8), [0]])))
+    spans = []
+    for start, stop in zip(edges[::2], edges[1::2]):
+        spans.append({"first": int(rows[start]), "last": int(rows[stop - 1]), "frames": int(stop - start),
+                      "confidence": float(np.mean(confidence[start:stop])),
+                      "lost": float(np.mean(lost[start:stop]))})
+    return spans
+
+
 def roc_auc(scores, labels) -> float:
     """Area under the ROC curve of ``scores`` predicting the bool ``labels``.
 

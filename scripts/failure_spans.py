@@ -1,0 +1,99 @@
+"""Where an evaluation run lost its target, and whether the tracker's confidence and status said so.
+
+``vidtrack eval`` pools the frames whose box misses the target (``IoU = 0``)
+into one figure per tracker, the missed loss.  This splits them into spans
+of consecutive scored frames, per sequence, with the tracker's mean
+confidence over each span and the fraction of its frames marked ``lost``
+(:func:`vidtrack.eval.confidence.failure_spans`).  A span at low confidence
+but rarely ``lost`` is a failure the confidence saw and the ``lost`` rule did
+not act on; one at high confidence is a failure neither saw::
+
+    vidtrack eval ../shared/data/sequences --sequences David,Human9 --filter mil --out RUN
+    python scripts/failure_spans.py RUN ../shared/data/sequences
+    python scripts/failure_spans.py RUN ../shared/data/sequences --filter mil --min-frames 5
+
+The frames scored are those ``vidtrack eval`` scores for its confidence
+table: the annotated ground-truth rows the run tracked, the init frame left
+out.  Rows are 0-based ground-truth rows.  A run folder without a tracker's
+per-frame confidence files, or a sequence the dataset does not have, stops
+the script with one line on stderr.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+
+from vidtrack.errors import VidtrackError  # noqa: E402
+from vidtrack.eval import confidence as conf  # noqa: E402
+from vidtrack.eval.datasets import load_dataset  # noqa: E402
+from vidtrack.eval.metrics import iou  # noqa: E402
+from vidtrack.eval.sequence import read_boxes  # noqa: E402
+
+
+def run_filters(run: Path) -> list[str]:
+    """The trackers of a run folder: its subfolders that hold per-frame confidence files."""
+    return sorted(folder.name for folder in run.iterdir()
+                  if folder.is_dir() and any(folder.glob(f"*{conf.SUFFIX}")))
+
+
+def sequence_spans(sequence, result_path: Path) -> tuple[list[dict[str, float]], int]:
+    """The failure spans of one result file against its sequence, and the number of frames scored."""
+    boxes = read_boxes(result_path)
+    confidence, status, _ = conf.read_confidence(conf.confidence_path(result_path), len(sequence))
+    tracked = np.flatnonzero(status != "")
+    scored = sequence.annotated & (status != "")
+    if tracked.size:
+        scored[tracked[0]] = False   # the init box is given, not tracked
+    rows = np.flatnonzero(scored)
+    ious = iou(boxes[rows], sequence.ground_truth[rows])
+    return conf.failure_spans(rows, ious, confidence[rows], status[rows]), len(rows)
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("run", type=Path, help="a vidtrack eval output folder (--out)")
+    parser.add_argument("dataset", help="the benchmark folder the run was made on")
+    parser.add_argument("--filter", help="comma-separated trackers (default: every one in the run)")
+    parser.add_argument("--min-frames", type=int, default=3,
+                        help="list spans of at least this many scored frames (default 3; all count in the totals)")
+    args = parser.parse_args(argv)
+    try:
+        if not args.run.is_dir():
+            raise SystemExit(f"failure_spans: {args.run}: not a folder")
+        filters = args.filter.split(",") if args.filter else run_filters(args.run)
+        if not filters:
+            raise SystemExit(f"failure_spans: {args.run}: no tracker with per-frame confidence files")
+        for name in filters:
+            paths = sorted((args.run / name).glob(f"*{conf.SUFFIX}"))
+            if not paths:
+                raise SystemExit(f"failure_spans: {args.run / name}: no per-frame confidence files")
+            names = [path.name[:-len(conf.SUFFIX)] for path in paths]
+            print(f"## `{name}`\n")
+            print("| sequence | rows | frames | mean confidence | marked lost |")
+            print("|---|---|---:|---:|---:|")
+            total = missed = seen = 0
+            for sequence in load_dataset(args.dataset, names):
+                spans, scored = sequence_spans(sequence, args.run / name / f"{sequence.name}.txt")
+                total += scored
+                for span in spans:
+                    missed += span["frames"]
+                    seen += span["frames"] if span["confidence"] < 0.5 else 0
+                    if span["frames"] >= args.min_frames:
+                        print(f"| {sequence.name} | {span['first']}-{span['last']} | {span['frames']} "
+                              f"| {span['confidence']:.2f} | {span['lost']:.2f} |")
+            share = seen / missed if missed else float("nan")
+            print(f"\n{missed} of {total} scored frames miss the target; {share:.2f} of them in spans of mean "
+                  "confidence below 0.5.\n")
+    except VidtrackError as exc:
+        raise SystemExit(f"failure_spans: {exc}") from None
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
