@@ -25,15 +25,13 @@ import argparse
 import sys
 from pathlib import Path
 
-import numpy as np
-
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from vidtrack.errors import VidtrackError  # noqa: E402
+from vidtrack.errors import DatasetError, VidtrackError  # noqa: E402
 from vidtrack.eval import confidence as conf  # noqa: E402
 from vidtrack.eval.datasets import load_dataset  # noqa: E402
-from vidtrack.eval.metrics import iou  # noqa: E402
-from vidtrack.eval.sequence import read_boxes  # noqa: E402
+from vidtrack.eval.results import read_record, result_paths  # noqa: E402
+from vidtrack.eval.scoring import score_result  # noqa: E402
 
 
 def run_filters(run: Path) -> list[str]:
@@ -42,17 +40,15 @@ def run_filters(run: Path) -> list[str]:
                   if folder.is_dir() and any(folder.glob(f"*{conf.SUFFIX}")))
 
 
-def sequence_spans(sequence, result_path: Path) -> tuple[list[dict[str, float]], int]:
-    """The failure spans of one result file against its sequence, and the number of frames scored."""
-    boxes = read_boxes(result_path)
-    confidence, status, _ = conf.read_confidence(conf.confidence_path(result_path), len(sequence))
-    tracked = np.flatnonzero(status != "")
-    scored = sequence.annotated & (status != "")
-    if tracked.size:
-        scored[tracked[0]] = False   # the init box is given, not tracked
-    rows = np.flatnonzero(scored)
-    ious = iou(boxes[rows], sequence.ground_truth[rows])
-    return conf.failure_spans(rows, ious, confidence[rows], status[rows]), len(rows)
+def sequence_spans(sequence, run: Path, name: str) -> tuple[list[dict[str, float]], int]:
+    """The failure spans of tracker ``name``'s result on ``sequence`` in ``run``, and the number of frames scored.
+
+    The frames are those :func:`~vidtrack.eval.scoring.score_result` scores for the confidence metrics.
+    """
+    scored = score_result(sequence, result_paths(run, name, sequence.name)[0], read_record(run, name, sequence.name))
+    if scored.frames is None:
+        raise DatasetError(f"{run / name}: no per-frame confidence file for {sequence.name}")
+    return conf.failure_spans(scored.rows, *scored.frames[:3]), len(scored.rows)
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -79,7 +75,7 @@ def main(argv: list[str] | None = None) -> int:
             print("|---|---|---:|---:|---:|")
             total = missed = seen = 0
             for sequence in load_dataset(args.dataset, names):
-                spans, scored = sequence_spans(sequence, args.run / name / f"{sequence.name}.txt")
+                spans, scored = sequence_spans(sequence, args.run, name)
                 total += scored
                 for span in spans:
                     missed += span["frames"]

@@ -66,6 +66,6 @@ def test_the_init_frame_is_not_scored(run):
     script = load_script("failure_spans")
     from vidtrack.eval.datasets import load_dataset
     sequence = load_dataset(run / "data", ["Walk"])[0]
-    spans, scored = script.sequence_spans(sequence, run / "run" / "mytracker" / "Walk.txt")
+    spans, scored = script.sequence_spans(sequence, run / "run", "mytracker")
     assert scored == 29 and len(spans) == 1
     assert np.isclose(spans[0]["confidence"], 0.2)

@@ -39,6 +39,7 @@ class SequenceScore:
     precision: np.ndarray | None = None
     frames: tuple[np.ndarray, ...] | None = None  # (ious, confidence, status, measured) for the confidence metrics
     got10k_ious: np.ndarray | None = None  # the frames GOT-10k scores, pooled into the overall AO and SR
+    rows: np.ndarray | None = None  # the ground-truth row of each of ``frames``
 
 
 def got10k_frames(sequence: BenchmarkSequence, results: np.ndarray, mask: np.ndarray) -> np.ndarray:
@@ -80,17 +81,18 @@ def score_result(sequence: BenchmarkSequence, result_path: Path, record: Mapping
         got_ious = got10k_frames(sequence, results, mask)
         row.update(got10k_scores(got_ious))
     row["fps"] = fps
-    frames = None
+    frames = rows = None
     row.update(dict.fromkeys(conf.CONFIDENCE_KEYS, float("nan")))
     if conf.confidence_path(result_path).is_file():
         keep = sequence.annotated & mask
         keep[start] = False  # the init box is given, not tracked
         confidence, status, measured = conf.read_confidence(conf.confidence_path(result_path), len(sequence))
         frames = (iou(results[keep], sequence.ground_truth[keep]), confidence[keep], status[keep], measured[keep])
+        rows = np.flatnonzero(keep)
         row.update(conf.confidence_metrics(*frames[:3]))
     grid = SUCCESS_GRIDS.get(sequence.layout, SUCCESS_THRESHOLDS)
     return SequenceScore(row, success_curve(ious, grid), precision_curve(errors, PRECISION_THRESHOLDS), frames,
-                         got_ious)
+                         got_ious, rows)
 
 
 def failed_row(error: str) -> dict[str, Any]:
