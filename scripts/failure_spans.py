@@ -30,14 +30,8 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 from vidtrack.errors import DatasetError, VidtrackError  # noqa: E402
 from vidtrack.eval import confidence as conf  # noqa: E402
 from vidtrack.eval.datasets import load_dataset  # noqa: E402
-from vidtrack.eval.results import read_record, result_paths  # noqa: E402
+from vidtrack.eval.results import read_record, result_paths, run_sequences  # noqa: E402
 from vidtrack.eval.scoring import score_result  # noqa: E402
-
-
-def run_filters(run: Path) -> list[str]:
-    """The trackers of a run folder: its subfolders that hold per-frame confidence files."""
-    return sorted(folder.name for folder in run.iterdir()
-                  if folder.is_dir() and any(folder.glob(f"*{conf.SUFFIX}")))
 
 
 def sequence_spans(sequence, run: Path, name: str) -> tuple[list[dict[str, float]], int]:
@@ -60,16 +54,9 @@ def main(argv: list[str] | None = None) -> int:
                         help="list spans of at least this many scored frames (default 3; all count in the totals)")
     args = parser.parse_args(argv)
     try:
-        if not args.run.is_dir():
-            raise SystemExit(f"failure_spans: {args.run}: not a folder")
-        filters = args.filter.split(",") if args.filter else run_filters(args.run)
-        if not filters:
-            raise SystemExit(f"failure_spans: {args.run}: no tracker with per-frame confidence files")
-        for name in filters:
-            paths = sorted((args.run / name).glob(f"*{conf.SUFFIX}"))
-            if not paths:
-                raise SystemExit(f"failure_spans: {args.run / name}: no per-frame confidence files")
-            names = [path.name[:-len(conf.SUFFIX)] for path in paths]
+        found = run_sequences(args.run, conf.SUFFIX, "per-frame confidence files",
+                              args.filter.split(",") if args.filter else None)
+        for name, names in found.items():
             print(f"## `{name}`\n")
             print("| sequence | rows | frames | mean confidence | marked lost |")
             print("|---|---|---:|---:|---:|")

@@ -129,6 +129,34 @@ def got10k_scores(ious) -> dict[str, float]:
     return {"ao": float(np.mean(ious)), "sr50": float(np.mean(ious > 0.5)), "sr75": float(np.mean(ious > 0.75))}
 
 
+def recentred(boxes, centres_from) -> np.ndarray:
+    """The boxes of ``boxes``, each moved to the centre of the same row of ``centres_from`` (sizes kept).
+
+    Scoring a tracker's result recentred on the ground truth (a perfect centre
+    with the tracker's size), or the ground truth recentred on the result (the
+    tracker's centre with a perfect size), tells how much of its loss of
+    success AUC comes from the centre and how much from the size.
+    """
+    boxes, centres_from = _as_boxes(boxes), _as_boxes(centres_from)
+    if boxes.shape != centres_from.shape:
+        raise ValueError(f"{len(boxes)} boxes for {len(centres_from)} centres")
+    out = boxes.copy()
+    out[:, :2] = centres_from[:, :2] + 0.5 * (centres_from[:, 2:] - boxes[:, 2:])
+    return out
+
+
+def fixed_size(ground_truth) -> bool:
+    """Whether every annotated row of ``ground_truth`` has one width and one height.
+
+    Such ground truth (the original MIL sequences: one box size for the whole
+    sequence) scores any size change the tracker makes as an error, even one
+    the target made.
+    """
+    truth = _as_boxes(ground_truth)
+    sizes = truth[annotated_rows(truth), 2:]
+    return bool(len(sizes) and np.all(sizes == sizes[0]))
+
+
 def success_curve(ious, thresholds=SUCCESS_THRESHOLDS) -> np.ndarray:
     """Fraction of frames with ``IoU > t`` for each threshold ``t`` (OTB success plot)."""
     ious = np.asarray(ious, dtype=float).ravel()

@@ -26,6 +26,7 @@ import threading
 from pathlib import Path
 from typing import Any
 
+from ..errors import DatasetError
 from .confidence import confidence_path
 
 #: Version of the run record's format; a record of another version is never reused.
@@ -38,6 +39,33 @@ def result_paths(out: str | Path, filter_name: str, sequence_name: str) -> tuple
     """``(OUT/<filter>/<Sequence>.txt, OUT/<filter>/<Sequence>.json)``."""
     folder = Path(out) / filter_name
     return folder / f"{sequence_name}.txt", folder / f"{sequence_name}.json"
+
+
+def run_sequences(out: str | Path, suffix: str, what: str, filters: list[str] | None = None) -> dict[str, list[str]]:
+    """The trackers of an evaluation folder ``out`` and the sequences each has a ``<Sequence><suffix>`` file for.
+
+    ``filters``: the trackers to take (default: every subfolder with such a
+    file); ``what`` names the files in the error messages (``"result files"``).
+
+    Raises
+    ------
+    DatasetError
+        When ``out`` is not a folder, holds no tracker with such files, or a named tracker has none.
+    """
+    out = Path(out)
+    if not out.is_dir():
+        raise DatasetError(f"{out}: not a folder")
+    if filters is None:
+        filters = sorted(f.name for f in out.iterdir() if f.is_dir() and any(f.glob(f"*{suffix}")))
+        if not filters:
+            raise DatasetError(f"{out}: no tracker with {what}")
+    found = {}
+    for name in filters:
+        names = sorted(path.name[:-len(suffix)] for path in (out / name).glob(f"*{suffix}"))
+        if not names:
+            raise DatasetError(f"{out / name}: no {what}")
+        found[name] = names
+    return found
 
 
 def write_atomic(path: Path, text: str) -> None:

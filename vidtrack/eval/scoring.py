@@ -23,7 +23,8 @@ from ..errors import DatasetError
 from . import confidence as conf
 from .datasets import BenchmarkSequence, read_boxes
 from .metrics import (METRIC_NAMES, PRECISION_THRESHOLDS, SUCCESS_GRIDS, SUCCESS_THRESHOLDS, clip_to_frame,
-                      frame_scores, got10k_scores, iou, precision_curve, success_curve, summarize)
+                      frame_scores, got10k_scores, iou, precision_curve, recentred, success_curve,
+                      summarize)
 from .results import result_paths
 
 Curves = dict[tuple[str, str], tuple[np.ndarray, np.ndarray]]
@@ -60,18 +61,39 @@ def got10k_frames(sequence: BenchmarkSequence, results: np.ndarray, mask: np.nda
     return iou(a, b)
 
 
+def read_result(sequence: BenchmarkSequence, result_path: Path) -> np.ndarray:
+    """The ``(N, 4)`` boxes of one result file, one row per ground-truth row of ``sequence``.
+
+    Raises
+    ------
+    DatasetError
+        When the file has another number of rows.
+    """
+    results = read_boxes(result_path)
+    if len(results) != len(sequence):
+        raise DatasetError(f"{result_path}: {len(results)} rows for {len(sequence)} ground-truth rows")
+    return results
+
+
+def tracked_rows(sequence: BenchmarkSequence, record: Mapping[str, Any] | None) -> tuple[int, np.ndarray]:
+    """The first ground-truth row the run tracked (its init row) and the ``(N,)`` bool mask of all it tracked.
+
+    The range is the run record's ``tracked``; without a record, the sequence's evaluated range.
+    """
+    start, stop = record["tracked"] if record else sequence.eval_range
+    mask = np.zeros(len(sequence), dtype=bool)
+    mask[start:stop] = True
+    return int(start), mask
+
+
 def score_result(sequence: BenchmarkSequence, result_path: Path, record: Mapping[str, Any] | None) -> SequenceScore:
     """Score one result file against its sequence (fps from the record of its run).
 
     The scored frames are the annotated ground-truth rows the run tracked
     (``record["tracked"]``; without a record, the sequence's evaluated range).
     """
-    results = read_boxes(result_path)
-    if len(results) != len(sequence):
-        raise DatasetError(f"{result_path}: {len(results)} rows for {len(sequence)} ground-truth rows")
-    start, stop = record["tracked"] if record else sequence.eval_range
-    mask = np.zeros(len(sequence), dtype=bool)
-    mask[start:stop] = True
+    results = read_result(sequence, result_path)
+    start, mask = tracked_rows(sequence, record)
     ious, errors, norm_errors = frame_scores(results, sequence.ground_truth, mask)
     metrics = summarize(ious, errors, norm_errors)
     fps = float(record["fps"]) if record and record.get("fps") is not None else float("nan")
@@ -93,6 +115,20 @@ def score_result(sequence: BenchmarkSequence, result_path: Path, record: Mapping
     grid = SUCCESS_GRIDS.get(sequence.layout, SUCCESS_THRESHOLDS)
     return SequenceScore(row, success_curve(ious, grid), precision_curve(errors, PRECISION_THRESHOLDS), frames,
                          got_ious, rows)
+
+
+def centre_and_size_aucs(sequence: BenchmarkSequence, results: np.ndarray, mask: np.ndarray
+                         ) -> tuple[float, float, float]:
+    """Success AUC of ``results``, of its centres with the ground truth's sizes, and of its sizes at the true centres.
+
+    The first is the summary's ``auc``; the second is what the run would score with a perfect size, the third with
+    a perfect centre (:func:`~vidtrack.eval.metrics.recentred`); the frames
+    are those :func:`score_result` scores (``mask``: the rows the run tracked).
+    """
+    truth = sequence.ground_truth
+    out = [summarize(*frame_scores(boxes, truth, mask))["auc"]
+           for boxes in (results, recentred(truth, results), recentred(results, truth))]
+    return out[0], out[1], out[2]
 
 
 def failed_row(error: str) -> dict[str, Any]:
