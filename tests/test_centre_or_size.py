@@ -93,6 +93,8 @@ def test_the_script_stops_with_one_line_on_bad_input(tmp_path):
         script.main([str(tmp_path / "run"), str(tmp_path)])
     with pytest.raises(SystemExit, match=r"^centre_or_size: .*: not a folder$"):
         script.main([str(tmp_path / "missing"), str(tmp_path)])
+    with pytest.raises(SystemExit, match=r"^centre_or_size: .*other: no result files$"):
+        script.main([str(tmp_path / "run"), str(tmp_path), "--filter", "other"])
     (tmp_path / "run" / "empty" / "Nowhere.txt").write_text("1,2,3,4\n")
     with pytest.raises(SystemExit, match=r"^centre_or_size: "):
         script.main([str(tmp_path / "run"), str(tmp_path / "nodata")])
