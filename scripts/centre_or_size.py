@@ -34,8 +34,9 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 from vidtrack.errors import VidtrackError  # noqa: E402
 from vidtrack.eval.datasets import load_dataset  # noqa: E402
 from vidtrack.eval.metrics import fixed_size  # noqa: E402
-from vidtrack.eval.results import read_record, result_paths, run_sequences  # noqa: E402
+from vidtrack.eval.results import RESULT_SUFFIX, read_record, result_paths, run_sequences  # noqa: E402
 from vidtrack.eval.scoring import centre_and_size_aucs, read_result, tracked_rows  # noqa: E402
+
 
 def sequence_aucs(sequence, run: Path, name: str) -> tuple[float, float, float]:
     """``(auc, auc with true sizes, auc with true centres)`` of tracker ``name``'s result on ``sequence`` in ``run``."""
@@ -51,7 +52,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--filter", help="comma-separated trackers (default: every one in the run)")
     args = parser.parse_args(argv)
     try:
-        found = run_sequences(args.run, ".txt", "result files", args.filter.split(",") if args.filter else None)
+        found = run_sequences(args.run, RESULT_SUFFIX, "result files", args.filter.split(",") if args.filter else None)
         for name, names in found.items():
             print(f"## `{name}`\n")
             print("| sequence | AUC | with true sizes | with true centres | ground-truth size |")

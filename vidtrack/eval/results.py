@@ -31,6 +31,8 @@ from .confidence import confidence_path
 
 #: Version of the run record's format; a record of another version is never reused.
 RECORD_VERSION = 2
+#: Ending of a result file's name: ``OUT/<filter>/<Sequence>.txt``
+RESULT_SUFFIX = ".txt"
 #: A result row the tracker did not track.
 NOT_TRACKED = "0,0,0,0"
 
@@ -38,7 +40,7 @@ NOT_TRACKED = "0,0,0,0"
 def result_paths(out: str | Path, filter_name: str, sequence_name: str) -> tuple[Path, Path]:
     """``(OUT/<filter>/<Sequence>.txt, OUT/<filter>/<Sequence>.json)``."""
     folder = Path(out) / filter_name
-    return folder / f"{sequence_name}.txt", folder / f"{sequence_name}.json"
+    return folder / f"{sequence_name}{RESULT_SUFFIX}", folder / f"{sequence_name}.json"
 
 
 def run_sequences(out: str | Path, suffix: str, what: str, filters: list[str] | None = None) -> dict[str, list[str]]:

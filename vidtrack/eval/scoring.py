@@ -23,7 +23,7 @@ from ..errors import DatasetError
 from . import confidence as conf
 from .datasets import BenchmarkSequence, read_boxes
 from .metrics import (METRIC_NAMES, PRECISION_THRESHOLDS, SUCCESS_GRIDS, SUCCESS_THRESHOLDS, clip_to_frame,
-                      frame_scores, got10k_scores, iou, precision_curve, recentred, success_curve,
+                      frame_scores, got10k_scores, iou, precision_curve, recentred, score, success_curve,
                       summarize)
 from .results import result_paths
 
@@ -121,14 +121,15 @@ def centre_and_size_aucs(sequence: BenchmarkSequence, results: np.ndarray, mask:
                          ) -> tuple[float, float, float]:
     """Success AUC of ``results``, of its centres with the ground truth's sizes, and of its sizes at the true centres.
 
-    The first is the summary's ``auc``; the second is what the run would score with a perfect size, the third with
-    a perfect centre (:func:`~vidtrack.eval.metrics.recentred`); the frames
-    are those :func:`score_result` scores (``mask``: the rows the run tracked).
+    The first is the summary's ``auc``; the second is what the run would
+    score with a perfect size, the third with a perfect centre
+    (:func:`~vidtrack.eval.metrics.recentred`).  The frames are those
+    :func:`score_result` scores (``mask``: the rows the run tracked).
     """
     truth = sequence.ground_truth
-    out = [summarize(*frame_scores(boxes, truth, mask))["auc"]
-           for boxes in (results, recentred(truth, results), recentred(results, truth))]
-    return out[0], out[1], out[2]
+    as_run, true_size, true_centre = (score(boxes, truth, mask)["auc"]
+                                      for boxes in (results, recentred(truth, results), recentred(results, truth)))
+    return as_run, true_size, true_centre
 
 
 def failed_row(error: str) -> dict[str, Any]:
