@@ -38,6 +38,10 @@ CLIP_FPS = 25
 INIT_BOX = "20,40,24,28"
 VELOCITY = (1.5, 0.5)   # pixels a frame: the target stays inside the 160x120 frame
 SLOW_SECONDS = 0.1
+#: FFmpeg releases an MPEG-TS frame once the next two frames' bytes have come (the PES ends where the next
+#: begins; the parser then finds the frame's end): a stream sends this many frames more than a test tracks,
+#: or its end would release its last two frames together and a busy tracker would drop the first of them
+TS_HOLD = 2
 SUMMARY = re.compile(r"live: received (\d+), tracked (\d+), dropped (\d+); latency from arrival to result "
                      r"median ([\d.]+) ms, 95th percentile ([\d.]+) ms")
 
@@ -97,10 +101,12 @@ def test_tcp_stream_gives_the_files_boxes_when_the_tracker_keeps_up(clip, tmp_pa
     common = ["--init-box", INIT_BOX, "--filter", "kalman-cv"]
     code, err = vidtrack([str(path), *common, "--boxes", "file.txt", "--max-frames", str(frames)], capfd, tmp_path)
     assert code == 0, err
-    with TsServer(chunks[:frames], fps) as server:
-        code, err = vidtrack([server.url, *common, "--boxes", "live.txt", "--log", "live.csv"], capfd, tmp_path)
+    with TsServer(chunks[:frames + TS_HOLD], fps) as server:
+        code, err = vidtrack([server.url, *common, "--boxes", "live.txt", "--log", "live.csv",
+                              "--max-frames", str(frames)], capfd, tmp_path)
     assert code == 0, err
-    assert summary(err)[:3] == (frames, frames, 0)
+    received, tracked, dropped, _, _ = summary(err)
+    assert (tracked, dropped) == (frames, 0) and received >= frames
     assert (tmp_path / "live.txt").read_text() == (tmp_path / "file.txt").read_text()
     rows = read_log(tmp_path / "live.csv")
     assert [int(row["frame"]) for row in rows] == list(range(frames))
@@ -295,7 +301,7 @@ def test_python_api_tracks_a_stream_url_live(clip):
     path, chunks, _ = clip
     box = tuple(int(v) for v in INIT_BOX.split(","))
     from_file = [s.box for s in vidtrack.track(str(path), box, filter="kalman-cv", max_frames=20)]
-    with TsServer(chunks[:20], 12.5) as server:
+    with TsServer(chunks[:20 + TS_HOLD], 12.5) as server:
         live = list(vidtrack.track(server.url, boxes=[box], filter="kalman-cv", max_frames=20))
     assert [states[1].index for states in live] == list(range(20))   # the tracker keeps up: nothing dropped
     np.testing.assert_allclose([states[1].box.as_array() for states in live],
