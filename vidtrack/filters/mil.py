@@ -114,7 +114,7 @@ class KalmanConfig:
                                                 "is predicted from the last wholly visible frame at constant "
                                                 "velocity and nothing is learned (none: no occlusion reasoning)")
     occlusion_frames: int = option(7, "frames an occlusion may last: then measurements are used again whatever "
-                                       "their coverage, and the velocities decay by coast_damping")
+                                      "their coverage, and the velocities decay by coast_damping")
     occlusion_onset: int = option(8, "an occlusion is a coverage fall from a wholly visible frame within this many "
                                      "frames (a slower fall is a change of appearance)")
     confidence: str | None = option("mil", "calibrated confidence: the cues mapped to P(IoU > 0.5) by "
