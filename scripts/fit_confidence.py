@@ -114,11 +114,10 @@ TRACKERS = {
 #: The cues of the presence model ``P(IoU > 0)`` that decides ``lost`` (rule ``"balance"``), judged on tune by
 #: the cost of the lost rule on held-out frames, which :func:`select_presence_cues` (``--select``) lowers by
 #: forward selection.  mil: the colour likelihood, the correlation filter's PSR, the inlier coverage and the
-#: presence flag: held-out cost 1.27 on the packaged tracker's frames (seeds 0 and 1; false lost 0.190, missed
-#: loss 0.025 below 0.54 for 2 frames).  The selection there takes the presence flag, the inlier coverage
-#: and ``scale_change`` (1.19); what it takes after the presence flag changes with the frames it runs on,
-#: and a file fitted on those three changes mil's mean tune AUC by less than the spread between seeds
-#: (docs/trackers.md).
+#: presence flag: held-out cost 1.27 on the packaged tracker's frames (seeds 0 and 1; false lost 0.187, missed
+#: loss 0.025 below 0.53 for 2 frames).  The selection there takes the colour likelihood, the PSR and
+#: ``scale_change`` (1.23); what it takes changes with the frames it runs on, and a file fitted on another
+#: set it took changed mil's mean tune AUC by less than the spread between seeds (docs/trackers.md).
 PRESENCE_CUES = {"mil": tuple(c for c in mil_filter.CUES if c[0] in ("colour", "psr", "inlier_coverage", "present"))}
 #: The runs of low presence ``mil``'s lost rule may require (``lost_after``).
 LOST_AFTER = (1, 2, 3, 4, 5)
