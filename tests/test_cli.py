@@ -165,16 +165,16 @@ def test_ctrl_c_keeps_every_tracked_frame(tmp_path, sample_init_box):
     import time
 
     # A frame folder long enough that the run is still going when interrupted.
-    folder_frames = 3000
+    images, folder_frames = 150, 3000
     folder = tmp_path / "frames"
     folder.mkdir()
     capture = cv2.VideoCapture(str(SAMPLE_VIDEO))
-    for k in range(150):
+    for k in range(images):
         ok, frame = capture.read()
         assert ok
         cv2.imwrite(str(folder / f"{k:04d}.png"), frame)
-    for k in range(150, folder_frames):  # the same images again, so the run outlasts a slow poll
-        (folder / f"{k:04d}.png").symlink_to(folder / f"{k % 150:04d}.png")
+    for k in range(images, folder_frames):  # the same images again, so the run outlasts a slow poll
+        (folder / f"{k:04d}.png").symlink_to(folder / f"{k % images:04d}.png")
     boxes, log = tmp_path / "b.txt", tmp_path / "log.csv"
     process = subprocess.Popen([sys.executable, "-m", "vidtrack", str(folder), "--init-box", sample_init_box,
                                 "--filter", "svk", "--boxes", str(boxes), "--log", str(log)],
