@@ -58,36 +58,40 @@ def copy_attributes(dataset: str | Path, out: Path, sequences) -> None:
         (out / "attr_list.txt").write_text("\n".join(lines) + "\n")
 
 
-def copy_sequence(sequence, out: Path, image_map, box_map) -> int:
+def copy_sequence(sequence, out: Path, image_map, box_map, *, keep=None) -> int:
     """Write ``sequence`` under ``out/<name>`` in the OTB layout, each frame and box mapped; returns the frame count.
 
     ``image_map(k, image)`` gives frame ``k``'s new image; ``box_map(k, box,
     (width, height))`` the new 0-based pixel ``(x, y, w, h)`` of its annotated
     box (the frame's original size given); rows that are not annotated stay
-    ``0,0,0,0``.
+    ``0,0,0,0``.  ``keep``: the 0-based indices of the frames to copy, in
+    order (default all); the copy numbers them from 1 without gaps.
     """
     folder = out / sequence.name / "img"
     folder.mkdir(parents=True, exist_ok=True)
+    keep = list(range(len(sequence.files))) if keep is None else [int(k) for k in keep]
     size = None
-    for k, path in enumerate(sequence.files):
+    for written, k in enumerate(keep):
+        path = sequence.files[k]
         image = cv2.imread(str(path), cv2.IMREAD_UNCHANGED)
         if image is None:
             raise SystemExit(f"cannot read {path}")
         size = (image.shape[1], image.shape[0])
         suffix = Path(path).suffix.lower()
-        name = folder / f"{k + 1:05d}{suffix if suffix in ('.png', '.jpg', '.jpeg') else '.png'}"
+        name = folder / f"{written + 1:05d}{suffix if suffix in ('.png', '.jpg', '.jpeg') else '.png'}"
         params = [cv2.IMWRITE_JPEG_QUALITY, 95] if name.suffix in (".jpg", ".jpeg") else []
         cv2.imwrite(str(name), image_map(k, image), params)
     rows = []
-    for row, ok in enumerate(annotated_rows(sequence.ground_truth)):
-        if not ok:
+    annotated = annotated_rows(sequence.ground_truth)
+    for row in (k for k in keep if k < len(annotated)):
+        if not annotated[row]:
             rows.append("0,0,0,0")
             continue
         px = sequence.to_pixels(sequence.ground_truth_box(row))
         x, y, w, h = box_map(row, px.as_array(), size)
         rows.append(f"{x + OTB_ORIGIN:.2f},{y + OTB_ORIGIN:.2f},{w:.2f},{h:.2f}")
     (out / sequence.name / "groundtruth_rect.txt").write_text("\n".join(rows) + "\n")
-    return len(sequence.files)
+    return len(keep)
 
 
 def upscale_sequence(sequence, out: Path, factor: float) -> int:
