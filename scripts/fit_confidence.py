@@ -80,11 +80,10 @@ OUT = Path(__file__).resolve().parents[1] / "vidtrack" / "filters" / "calibratio
 
 #: The cues the packaged files use, chosen on tune by forward selection on :func:`held_out_auc` (fit on 12
 #: sequences, score the 13th, pooled).  mil: the running verification, the inlier coverage, the presence
-#: flag, the colour likelihood and the verification gap (0.946 on the packaged tracker's frames, where the
-#: selection stops at the first four, 0.944; ``--compare`` gives, on the same frames, the quality, PSR and
-#: inlier coverage 0.922, all of :data:`~vidtrack.filters.mil.CUES` 0.913, the five with the border gap
-#: 0.936, and the border gap added to the presence model raises the held-out cost of the lost rule from
-#: 1.27 to 1.30).  The
+#: flag, the colour likelihood and the verification gap (0.937 on the packaged tracker's frames, where the
+#: selection takes the inlier coverage, the verification gap and the running colour likelihood, 0.940;
+#: ``--compare`` gives, on the same frames, the quality, PSR and inlier coverage 0.890, all of
+#: :data:`~vidtrack.filters.mil.CUES` 0.915, the five with the border gap 0.930).  The
 #: score-map trackers and cbt, likewise, on the uncalibrated tracker's frames.  nh: the running colour
 #: likelihood, the verification gap, the map's quality and the box's gap to the frame's border (0.935; without
 #: the border gap 0.924; forward selection takes the actions' spread instead of the quality, 0.934; the
@@ -114,9 +113,9 @@ TRACKERS = {
 #: The cues of the presence model ``P(IoU > 0)`` that decides ``lost`` (rule ``"balance"``), judged on tune by
 #: the cost of the lost rule on held-out frames, which :func:`select_presence_cues` (``--select``) lowers by
 #: forward selection.  mil: the colour likelihood, the correlation filter's PSR, the inlier coverage and the
-#: presence flag: held-out cost 1.27 on the packaged tracker's frames (seeds 0 and 1; false lost 0.187, missed
-#: loss 0.025 below 0.53 for 2 frames).  The selection there takes the colour likelihood, the PSR and
-#: ``scale_change`` (1.23); what it takes changes with the frames it runs on, and a file fitted on another
+#: presence flag: held-out cost 1.70 on the packaged tracker's frames (seeds 0 and 1; false lost 0.243, missed
+#: loss 0.034 below 0.42 for 1 frame).  The selection there takes the colour likelihood, the PSR and
+#: ``scale_change`` (1.62); what it takes changes with the frames it runs on, and a file fitted on another
 #: set it took changed mil's mean tune AUC by less than the spread between seeds (docs/trackers.md).
 PRESENCE_CUES = {"mil": tuple(c for c in mil_filter.CUES if c[0] in ("colour", "psr", "inlier_coverage", "present"))}
 #: The runs of low presence ``mil``'s lost rule may require (``lost_after``).

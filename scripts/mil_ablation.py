@@ -44,6 +44,7 @@ CONFIGS = {
     "default - cf scale": with_settings(MIL, {"fusion.size_from": "none"}),
     "default - re-detection": with_settings(MIL, {"fusion.redetect": False}),
     "default - search when reported lost": with_settings(MIL, {"fusion.search_when_lost": False}),
+    "default - search again at the filter's peak": with_settings(MIL, {"fusion.recentre": None}),
     "default - lost bag": with_settings(MIL, {"graphcut.lost_bag": False}),
     "default - cf constraint (DSST filter)": with_settings(MIL, {"correlation.constrained": False}),
     "default - cf colour merge": with_settings(MIL, {"correlation.colour_merge": 0.0}),

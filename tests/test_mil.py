@@ -377,21 +377,36 @@ def test_the_confidence_reads_the_first_frames_appearance_without_moving_a_box()
     assert all(s.status == "tracking" and s.confidence > 0.5 for s in states)   # an easy clip: never in doubt
 
 
+def _centre_found_after_a_jump(settings, status):
+    """``mil``'s measurer with ``settings`` learns a still square for three frames, then the square jumps 1.25
+    boxes (30 px) right of the prediction, a prior of ``status``: the measured centre, or None."""
+    measurer = MILMeasurer(with_settings(recipe_config("mil"), settings), rng=0)
+    measurer.initialize(_scene(0, 50, 60), Box(38, 48, 24, 24))
+    for k in range(1, 4):
+        measurer.measure(_scene(k, 50, 60), Estimate(Box(38, 48, 24, 24), covariance=np.eye(8)))
+        measurer.learn(_scene(k, 50, 60), Estimate(Box(38, 48, 24, 24), scalars={"measured": 1.0}))
+    z = measurer.measure(_scene(4, 80, 60), Estimate(Box(38, 48, 24, 24), covariance=np.eye(8), status=status))
+    return None if z is None or z.box is None else z.box.center
+
+
 def test_a_frame_reported_lost_is_searched_as_an_unmeasured_one():
     """``fusion.search_when_lost`` (on in ``mil``): a prior the filter reports lost widens the search
     (the lost bag, the filter's re-detection), so a target 1.25 boxes from the prediction is found; from a
-    prior reported tracking, or with the switch off, it is not.  ``mil-paper`` searches as the paper does."""
-    found = {}
-    for on in (True, False):
-        for status in (LOST, TRACKING):
-            config = with_settings(recipe_config("mil"), {"fusion.search_when_lost": on})
-            measurer = MILMeasurer(config, rng=0)
-            measurer.initialize(_scene(0, 50, 60), Box(38, 48, 24, 24))
-            for k in range(1, 4):
-                measurer.measure(_scene(k, 50, 60), Estimate(Box(38, 48, 24, 24), covariance=np.eye(8)))
-                measurer.learn(_scene(k, 50, 60), Estimate(Box(38, 48, 24, 24), scalars={"measured": 1.0}))
-            z = measurer.measure(_scene(4, 80, 60), Estimate(Box(38, 48, 24, 24), covariance=np.eye(8), status=status))
-            found[on, status] = None if z is None or z.box is None else z.box.center
+    prior reported tracking, or with the switch off, it is not (with ``fusion.recentre`` off, which would
+    find it from any prior).  ``mil-paper`` searches as the paper does."""
+    found = {(on, status): _centre_found_after_a_jump({"fusion.search_when_lost": on, "fusion.recentre": None},
+                                                      status)
+             for on in (True, False) for status in (LOST, TRACKING)}
     assert found[True, LOST] is not None and np.allclose(found[True, LOST], (80, 60), atol=2.0)
     assert found[True, TRACKING] is None and found[False, LOST] is None and found[False, TRACKING] is None
     assert recipe_config("mil").fusion.search_when_lost and not recipe_config("mil-paper").fusion.search_when_lost
+
+
+def test_a_frame_without_inliers_is_searched_again_around_a_confident_filter_peak():
+    """``fusion.recentre``: the target has moved 1.25 boxes from a prediction reported tracking, so the
+    positive bag at the prediction holds none of it and the inliers measure nothing; the correlation
+    filter's window still sees it, and the superpixels searched again around its peak find it there.
+    Without the setting the frame has no measurement."""
+    found = {recentre: _centre_found_after_a_jump({"fusion.recentre": recentre}, TRACKING) for recentre in (0.5, None)}
+    assert found[0.5] is not None and np.allclose(found[0.5], (80, 60), atol=2.0)
+    assert found[None] is None

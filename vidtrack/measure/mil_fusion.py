@@ -33,6 +33,16 @@ the posterior box of confident frames.  What the filter adds, each part of
   find the target's inliers there.  Searching the whole frame from the
   first lost frame would let a look-alike take over while the target is
   occluded;
+* a target that outruns the bag (``recentre``): the positive bag and the
+  cut's spatial prior sit on the prediction, so a target that moved faster
+  than the Kalman filter expects leaves them and the inliers measure
+  nothing, while the correlation window, several boxes wide, still sees it.
+  When the inliers give no measurement and the filter's peak, of quality at
+  least ``recentre``, lies more than a tenth of a box from the prediction,
+  the superpixels, the SVM and the graph cut run again around that peak;
+  what they find there is the measurement.  As in re-detection the filter
+  only proposes: a peak on an occluder or on clutter finds no inliers and
+  the frame stays unmeasured;
 * lost or present (``present``): a frame with no usable measurement is
   still reported ``tracking`` (predicted only) when the filter's quality
   reaches ``present`` and its peak lies within half a box of the
@@ -107,6 +117,8 @@ class FusionConfig:
                                         "quality lies at the prediction (none: it is lost)")
     search_when_lost: bool = option(True, "a frame the filter reports lost (its calibrated lost rule) is "
                                            "searched as an unmeasured one: wider bag, re-detection")
+    recentre: float | None = option(0.5, "a frame whose inliers give no measurement is searched again around the "
+                                         "filter's peak when its quality reaches this (none: never)")
     core: bool = option(True, "run the paper's superpixel / SVM / graph-cut core (off: the correlation filter "
                               "alone measures the box, an ablation)")
 
@@ -240,9 +252,12 @@ class MILMeasurer:
         inlier, stages = self._inlier_stages(found)   # all that does not need the filter, before waiting for it
         cf = self._wait_correlation()
         self.cf_result_ = cf
-        if (cf is not None and f.redetect and searching and cf.quality >= f.reacquire
-                and np.linalg.norm(cf.centre - prior.box.center) > 0.5 * prior.box.scale):
-            # re-detection: the correlation filter proposes, the superpixels and the SVM verify there
+        offset = np.inf if cf is None else np.linalg.norm(cf.centre - prior.box.center) / max(prior.box.scale, 1e-6)
+        redetect = cf is not None and f.redetect and searching and cf.quality >= f.reacquire and offset > 0.5
+        recentre = (cf is not None and f.recentre is not None and found is not None and inlier is None
+                    and cf.quality >= f.recentre and offset > 0.1)
+        if redetect or recentre:
+            # the correlation filter proposes, the superpixels and the SVM verify there
             prior = replace(prior, box=Box.from_center(*cf.centre, *prior.box.size))
             found = self.appearance_.search(frame, prior, sigma, searching=searching)
             inlier, stages = self._inlier_stages(found)
