@@ -27,9 +27,7 @@ from pathlib import Path
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
-from upscale_sequences import copy_attributes, copy_parser, copy_sequence, outside_repository  # noqa: E402
-
-from vidtrack.eval.datasets import load_dataset  # noqa: E402
+from upscale_sequences import copy_parser, copy_sequence, write_copies  # noqa: E402
 
 
 def stride_sequence(sequence, out: Path, stride: int) -> int:
@@ -44,14 +42,8 @@ def main(argv=None) -> int:
     args = parser.parse_args(argv)
     if args.stride < 1:
         raise SystemExit("--stride must be a positive whole number")
-    names = args.sequences.split(",") if args.sequences else None
-    out = outside_repository(args.out)
-    sequences = load_dataset(args.dataset, names)
-    for sequence in sequences:
-        n = stride_sequence(sequence, out, args.stride)
-        print(f"{sequence.name}: {n} of {len(sequence.files)} frames (every {args.stride})")
-    copy_attributes(args.dataset, out, sequences)
-    return 0
+    return write_copies(args, lambda sequence, out: f"{stride_sequence(sequence, out, args.stride)} of "
+                                                    f"{len(sequence.files)} frames (every {args.stride})")
 
 
 if __name__ == "__main__":

@@ -102,18 +102,26 @@ def upscale_sequence(sequence, out: Path, factor: float) -> int:
         lambda k, box, size: tuple(factor * float(v) for v in box))
 
 
-def main(argv=None) -> int:
-    parser = copy_parser(__doc__.splitlines()[0])
-    parser.add_argument("--factor", type=float, default=2.0, help="scale factor (default 2)")
-    args = parser.parse_args(argv)
+def write_copies(args: argparse.Namespace, copy_one) -> int:
+    """Copy the sequences :func:`copy_parser`'s ``args`` name to ``args.out``, then their attributes; exit code 0.
+
+    ``copy_one(sequence, out)`` writes one sequence and returns what to print after its name.
+    """
     names = args.sequences.split(",") if args.sequences else None
     out = outside_repository(args.out)
     sequences = load_dataset(args.dataset, names)
     for sequence in sequences:
-        n = upscale_sequence(sequence, out, args.factor)
-        print(f"{sequence.name}: {n} frames x{args.factor:g}")
+        print(f"{sequence.name}: {copy_one(sequence, out)}")
     copy_attributes(args.dataset, out, sequences)
     return 0
+
+
+def main(argv=None) -> int:
+    parser = copy_parser(__doc__.splitlines()[0])
+    parser.add_argument("--factor", type=float, default=2.0, help="scale factor (default 2)")
+    args = parser.parse_args(argv)
+    return write_copies(args, lambda sequence, out: f"{upscale_sequence(sequence, out, args.factor)} frames "
+                                                    f"x{args.factor:g}")
 
 
 if __name__ == "__main__":

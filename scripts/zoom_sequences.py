@@ -33,9 +33,7 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
-from upscale_sequences import copy_attributes, copy_parser, copy_sequence, outside_repository  # noqa: E402
-
-from vidtrack.eval.datasets import load_dataset  # noqa: E402
+from upscale_sequences import copy_parser, copy_sequence, write_copies  # noqa: E402
 
 def zoom_factor(t: int, depth: float, period: float) -> float:
     """``z(t) = 1 - depth (1 - cos(2 pi t / period)) / 2``."""
@@ -71,14 +69,8 @@ def main(argv=None) -> int:
     args = parser.parse_args(argv)
     if not 0.0 <= args.depth < 1.0 or args.period <= 0:
         raise SystemExit("--depth must be in [0, 1) and --period positive")
-    names = args.sequences.split(",") if args.sequences else None
-    out = outside_repository(args.out)
-    sequences = load_dataset(args.dataset, names)
-    for sequence in sequences:
-        n = zoom_sequence(sequence, out, args.depth, args.period)
-        print(f"{sequence.name}: {n} frames, zoom 1 .. {1 - args.depth:g} every {args.period:g} frames")
-    copy_attributes(args.dataset, out, sequences)
-    return 0
+    return write_copies(args, lambda sequence, out: f"{zoom_sequence(sequence, out, args.depth, args.period)} "
+                                                    f"frames, zoom 1 .. {1 - args.depth:g} every {args.period:g} frames")
 
 
 if __name__ == "__main__":
