@@ -115,8 +115,8 @@ TRACKERS = {
 #: forward selection.  mil: the colour likelihood, the correlation filter's PSR, the inlier coverage and the
 #: presence flag: held-out cost 1.70 on the packaged tracker's frames (seeds 0 and 1; false lost 0.243, missed
 #: loss 0.034 below 0.42 for 1 frame).  The selection there takes the colour likelihood, the PSR and
-#: ``scale_change`` (1.62); what it takes changes with the frames it runs on, and a file fitted on another
-#: set it took changed mil's mean tune AUC by less than the spread between seeds (docs/trackers.md).
+#: ``scale_change`` (1.62).  The presence cues steer the search of a frame reported lost, so they change the
+#: frames this cost is measured on: another set is judged by the tracking it steers (docs/trackers.md).
 PRESENCE_CUES = {"mil": tuple(c for c in mil_filter.CUES if c[0] in ("colour", "psr", "inlier_coverage", "present"))}
 #: The runs of low presence ``mil``'s lost rule may require (``lost_after``).
 LOST_AFTER = (1, 2, 3, 4, 5)
