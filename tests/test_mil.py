@@ -377,15 +377,24 @@ def test_the_confidence_reads_the_first_frames_appearance_without_moving_a_box()
     assert all(s.status == "tracking" and s.confidence > 0.5 for s in states)   # an easy clip: never in doubt
 
 
-def _centre_found_after_a_jump(settings, status):
-    """``mil``'s measurer with ``settings`` learns a still square for three frames, then the square jumps 1.25
-    boxes (30 px) right of the prediction, a prior of ``status``: the measured centre, or None."""
+def _measured_after_a_jump(settings, status, jump=30, *, blind=False):
+    """``mil``'s measurer with ``settings`` learns a still square for three frames, then the square moves
+    ``jump`` px right of the prediction, a prior of ``status``: the measurement.  ``blind``: the inliers
+    measure nothing on that frame, at any search centre."""
     measurer = MILMeasurer(with_settings(recipe_config("mil"), settings), rng=0)
     measurer.initialize(_scene(0, 50, 60), Box(38, 48, 24, 24))
     for k in range(1, 4):
         measurer.measure(_scene(k, 50, 60), Estimate(Box(38, 48, 24, 24), covariance=np.eye(8)))
         measurer.learn(_scene(k, 50, 60), Estimate(Box(38, 48, 24, 24), scalars={"measured": 1.0}))
-    z = measurer.measure(_scene(4, 80, 60), Estimate(Box(38, 48, 24, 24), covariance=np.eye(8), status=status))
+    if blind:
+        measurer._inlier_stages = lambda found: (None, {})
+    return measurer.measure(_scene(4, 50 + jump, 60), Estimate(Box(38, 48, 24, 24), covariance=np.eye(8),
+                                                                status=status))
+
+
+def _centre_found_after_a_jump(settings, status):
+    """The centre measured after the square jumps 1.25 boxes (30 px) (:func:`_measured_after_a_jump`), or None."""
+    z = _measured_after_a_jump(settings, status)
     return None if z is None or z.box is None else z.box.center
 
 
@@ -410,3 +419,14 @@ def test_a_frame_without_inliers_is_searched_again_around_a_confident_filter_pea
     found = {recentre: _centre_found_after_a_jump({"fusion.recentre": recentre}, TRACKING) for recentre in (0.5, None)}
     assert found[0.5] is not None and np.allclose(found[0.5], (80, 60), atol=2.0)
     assert found[None] is None
+
+
+def test_presence_is_judged_at_the_prediction_even_after_a_search_around_the_filter_peak():
+    """``fusion.present``: a frame the inliers do not measure is present when the correlation filter sees the
+    target within half a box of the prediction.  When the target has jumped 1.25 boxes the filter's
+    confident peak starts a second search there (``fusion.recentre``); if that finds nothing either, the
+    frame is not present, although the search was centred on the peak."""
+    still = _measured_after_a_jump({}, TRACKING, jump=0, blind=True)
+    jumped = _measured_after_a_jump({}, TRACKING, jump=30, blind=True)
+    assert still.box is None and still.present
+    assert jumped.box is None and not jumped.present

@@ -46,9 +46,11 @@ the posterior box of confident frames.  What the filter adds, each part of
 * lost or present (``present``): a frame with no usable measurement is
   still reported ``tracking`` (predicted only) when the filter's quality
   reaches ``present`` and its peak lies within half a box of the
-  prediction, so ``lost`` means that neither cue sees the target.  Only the
-  reported status changes: the search after a predicted-only frame follows
-  the filter's ``measured`` scalar, not the status.
+  prediction (the prediction itself, also when a second search ran around
+  the peak and found nothing there), so ``lost`` means that neither cue
+  sees the target.  Only the reported status changes: the search after a
+  predicted-only frame follows the filter's ``measured`` scalar, not the
+  status.
 
 Speed, without changing a result: the filter's update from the last frame
 and its detection in this one run on a second thread
@@ -257,9 +259,10 @@ class MILMeasurer:
         recentre = (cf is not None and f.recentre is not None and found is not None and inlier is None
                     and cf.quality >= f.recentre and offset > 0.1)
         if redetect or recentre:
-            # the correlation filter proposes, the superpixels and the SVM verify there
-            prior = replace(prior, box=Box.from_center(*cf.centre, *prior.box.size))
-            found = self.appearance_.search(frame, prior, sigma, searching=searching)
+            # the correlation filter proposes, the superpixels and the SVM verify there (the prior itself stays:
+            # presence below is judged against the prediction, not against the peak searched)
+            at_peak = replace(prior, box=Box.from_center(*cf.centre, *prior.box.size))
+            found = self.appearance_.search(frame, at_peak, sigma, searching=searching)
             inlier, stages = self._inlier_stages(found)
         if found is None:
             return None
@@ -274,8 +277,7 @@ class MILMeasurer:
             if cf is not None:   # do the two cues agree on where the target is? (box units)
                 gap = np.linalg.norm(cf.centre - np.asarray(inlier.centre)) / max(prior.box.scale, 1e-6)
                 stages["cue_agreement"] = float(gap)
-        present = (cf is not None and f.present is not None and cf.quality >= f.present
-                   and np.linalg.norm(cf.centre - prior.box.center) <= 0.5 * prior.box.scale)
+        present = cf is not None and f.present is not None and cf.quality >= f.present and offset <= 0.5
         return Superpixels(labels=labels, features=found.features, scores=scores, inliers=inliers, box=box,
                            quality=quality, search_region=found.region.box, stages=stages, present=bool(present))
 
