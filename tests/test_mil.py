@@ -428,5 +428,8 @@ def test_presence_is_judged_at_the_prediction_even_after_a_search_around_the_fil
     frame is not present, although the search was centred on the peak."""
     still = _measured_after_a_jump({}, TRACKING, jump=0, blind=True)
     jumped = _measured_after_a_jump({}, TRACKING, jump=30, blind=True)
+    c = recipe_config("mil").correlation
+    confident_psr = c.psr_low + recipe_config("mil").fusion.present * (c.psr_high - c.psr_low)
+    assert jumped.stages["psr"] >= confident_psr   # the filter does see the jumped target (a second search ran)
     assert still.box is None and still.present
     assert jumped.box is None and not jumped.present
