@@ -113,9 +113,9 @@ TRACKERS = {
 #: The cues of the presence model ``P(IoU > 0)`` that decides ``lost`` (rule ``"balance"``), judged on tune by
 #: the cost of the lost rule on held-out frames, which :func:`select_presence_cues` (``--select``) lowers by
 #: forward selection.  mil: the colour likelihood, the correlation filter's PSR, the inlier coverage and the
-#: presence flag: held-out cost 1.70 on the packaged tracker's frames (seeds 0 and 1; false lost 0.243, missed
-#: loss 0.034 below 0.42 for 1 frame).  The selection there takes the colour likelihood, the PSR and
-#: ``scale_change`` (1.62).  The presence cues steer the search of a frame reported lost, so they change the
+#: presence flag: held-out cost 1.65 on the packaged tracker's frames (seeds 0 and 1; false lost 0.248, missed
+#: loss 0.033 below 0.43 for 1 frame).  The selection there takes the presence flag and ``border_gap``
+#: (1.51), which steer the tracker worse when fitted in two passes (docs/trackers.md).  The presence cues steer the search of a frame reported lost, so they change the
 #: frames this cost is measured on: another set is judged by the tracking it steers (docs/trackers.md).
 PRESENCE_CUES = {"mil": tuple(c for c in mil_filter.CUES if c[0] in ("colour", "psr", "inlier_coverage", "present"))}
 #: The runs of low presence ``mil``'s lost rule may require (``lost_after``).

@@ -48,9 +48,10 @@ the posterior box of confident frames.  What the filter adds, each part of
   reaches ``present`` and its peak lies within half a box of the
   prediction (the prediction itself, also when a second search ran around
   the peak and found nothing there), so ``lost`` means that neither cue
-  sees the target.  Only the reported status changes: the search after a
-  predicted-only frame follows the filter's ``measured`` scalar, not the
-  status.
+  sees the target.  It changes the reported status, and a box only through
+  the search of a frame reported lost (``search_when_lost``; with the
+  calibrated confidence the status is the presence model's, of which
+  ``present`` is one cue).
 
 Speed, without changing a result: the filter's update from the last frame
 and its detection in this one run on a second thread
@@ -116,7 +117,7 @@ class FusionConfig:
     global_boxes: float = option(32.0, "the whole-frame search covers at most this many box sizes per side, "
                                        "around the prediction, so its cost follows the box, not the frame")
     present: float | None = option(0.5, "a predicted-only frame is still tracking when the filter's peak of this "
-                                        "quality lies at the prediction (none: it is lost)")
+                                        "quality lies within half a box of the prediction (none: it is lost)")
     search_when_lost: bool = option(True, "a frame the filter reports lost (its calibrated lost rule) is "
                                            "searched as an unmeasured one: wider bag, re-detection")
     recentre: float | None = option(0.5, "a frame whose inliers give no measurement is searched again around the "
