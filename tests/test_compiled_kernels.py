@@ -49,6 +49,33 @@ def test_small_components_are_merged_into_a_neighbour():
     assert no_merge.max() >= labels.max()
 
 
+def test_kmeans_assigns_each_pixel_to_the_nearest_centre_within_reach():
+    """One iteration of the compiled k-means against eq. 3 evaluated with numpy: every pixel gets a centre
+    within ``S`` (rounded) of it in x and y whose distance is the smallest of all those centres' (to float32
+    rounding: the compiled loop may sum the terms in another order)."""
+    from vidtrack.measure.slic import _kmeans, _seeds
+
+    rng = np.random.default_rng(2)
+    field = cv2.resize(rng.integers(0, 255, (9, 13, 3), dtype=np.uint8), (143, 101), interpolation=cv2.INTER_CUBIC)
+    lab = cv2.cvtColor(field, cv2.COLOR_BGR2Lab).astype(np.float32)
+    step, ruler = 11.0, 10.0
+    centres = _seeds(lab, step)
+    labels = _kmeans(lab, centres.copy(), step, ruler, 1)
+    h, w = lab.shape[:2]
+    ys, xs = np.mgrid[0:h, 0:w]
+    reach = int(step + 0.5)
+    cx, cy = centres[:, 3][:, None, None], centres[:, 4][:, None, None]
+    d = (np.sum((lab[None] - centres[:, None, None, :3]) ** 2, axis=3)
+         + (ruler / step) ** 2 * ((xs - cx) ** 2 + (ys - cy) ** 2))                  # (K, h, w), eq. 3
+    within = (np.abs(xs - cx.astype(int)) <= reach) & (np.abs(ys - cy.astype(int)) <= reach)
+    d = np.where(within, d, np.inf)
+    best = d.min(axis=0)
+    chosen = np.take_along_axis(d, labels[None].astype(np.int64), axis=0)[0]
+    assert np.all(np.isfinite(best))
+    assert np.allclose(chosen, best, rtol=1e-5, atol=1e-3)
+    assert np.mean(labels == d.argmin(axis=0)) > 0.99
+
+
 def test_the_two_implementations_agree_on_a_real_region():
     rng = np.random.default_rng(1)
     # a smooth random colour field: both must give about as many superpixels, with similar boundaries

@@ -77,20 +77,26 @@ def _kmeans(lab: np.ndarray, centres: np.ndarray, step: float, ruler: float, ite
             cl, ca, cb, cx, cy = centres[k, 0], centres[k, 1], centres[k, 2], centres[k, 3], centres[k, 4]
             x0, x1 = max(int(cx) - reach, 0), min(int(cx) + reach + 1, w)
             y0, y1 = max(int(cy) - reach, 0), min(int(cy) + reach + 1, h)
-            for x in range(x0, x1):
-                dx = np.float32(x) - cx
-                row_cost[x] = spatial * dx * dx
+            n = x1 - x0
+            # rows as slices indexed from 0: the compiler sees non-negative indices and vectorises the loop
+            dx2 = row_cost[:n]
+            for i in range(n):
+                dx = np.float32(x0 + i) - cx
+                dx2[i] = spatial * dx * dx
+            label = np.int32(k)
             for y in range(y0, y1):
                 dy = np.float32(y) - cy
                 dy2 = spatial * dy * dy
-                for x in range(x0, x1):
-                    dl = L[y, x] - cl
-                    da = A[y, x] - ca
-                    db = B[y, x] - cb
-                    d = dl * dl + da * da + db * db + row_cost[x] + dy2   # eq. 3
-                    better = d < dist[y, x]
-                    dist[y, x] = d if better else dist[y, x]
-                    labels[y, x] = np.int32(k) if better else labels[y, x]
+                l_row, a_row, b_row = L[y, x0:x1], A[y, x0:x1], B[y, x0:x1]
+                dist_row, label_row = dist[y, x0:x1], labels[y, x0:x1]
+                for i in range(n):
+                    dl = l_row[i] - cl
+                    da = a_row[i] - ca
+                    db = b_row[i] - cb
+                    d = dl * dl + da * da + db * db + dx2[i] + dy2   # eq. 3
+                    better = d < dist_row[i]
+                    dist_row[i] = d if better else dist_row[i]
+                    label_row[i] = label if better else label_row[i]
         sums[:] = 0.0
         for y in range(h):
             for x in range(w):
