@@ -31,7 +31,7 @@ import numba
 import numpy as np
 
 
-@numba.njit(cache=True, nogil=True)
+@numba.njit(cache=True, nogil=True, error_model="numpy")   # IEEE division (no zero check): vectorised
 def _update_histograms(index, obj, bg, object_hist, background_hist, table, rate):
     """Staple's running histograms in place (eq. 14's ``rho``), and the object-probability table.
 

@@ -43,24 +43,34 @@ def _orientation_histograms(mag: np.ndarray, angle: np.ndarray, cell: int, bins:
     out = np.zeros((hc, wc, bins), np.float32)
     pi = np.float32(np.pi)
     scale = np.float32(bins / np.pi)
+    column = np.empty(W, np.int64)
+    for x in range(W):
+        column[x] = min(x // cell, wc - 1)
+    lows = np.empty(W, np.int64)
+    fracs = np.empty(W, np.float32)
     for y in range(H):
-        r = min(y // cell, hc - 1)
-        for x in range(W):
-            m = mag[y, x]
-            a = angle[y, x]
+        cells = out[min(y // cell, hc - 1)]
+        m_row, a_row = mag[y], angle[y]
+        for x in range(W):                               # the bins of a row first (a loop the compiler vectorises)
+            a = a_row[x]
             if a >= pi:                                  # unsigned orientation in [0, pi)
                 a -= pi
             pos = a * scale - np.float32(0.5)
-            lo = int(np.floor(pos))
-            frac = pos - np.float32(lo)
+            low = np.floor(pos)
+            fracs[x] = pos - low
+            lows[x] = np.int64(low)
+        for x in range(W):                               # then the votes
+            m = m_row[x]
+            frac = fracs[x]
+            lo = lows[x]
             hi = lo + 1
             if lo < 0:
                 lo += bins
             if hi >= bins:
                 hi -= bins
-            c = min(x // cell, wc - 1)
-            out[r, c, lo] += m - m * frac
-            out[r, c, hi] += m * frac
+            c = column[x]
+            cells[c, lo] += m - m * frac
+            cells[c, hi] += m * frac
     return out
 
 

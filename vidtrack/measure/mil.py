@@ -211,12 +211,15 @@ def _peak_and_mean_shift(w_pix, smooth, start_u, start_v, box_w, box_h, iteratio
     """
     h, w = w_pix.shape
     best, v0, u0 = -np.inf, 0, 0
-    for v in range(h):   # gentle preference for the prediction on ties: exp(-d^2 / 2) in box units
+    prior_u = np.empty(w)   # gentle preference for the prediction on ties: exp(-d^2 / 2) in box units
+    for u in range(w):
+        du = (u + 0.5 - start_u) / box_w
+        prior_u[u] = np.exp(-0.5 * du * du)
+    for v in range(h):
         dv = (v + 0.5 - start_v) / box_h
         prior_v = np.exp(-0.5 * dv * dv)
         for u in range(w):
-            du = (u + 0.5 - start_u) / box_w
-            value = smooth[v, u] * (prior_v * np.exp(-0.5 * du * du))
+            value = smooth[v, u] * (prior_v * prior_u[u])
             if value > best:
                 best, v0, u0 = value, v, u
     cu, cv = u0 + 0.5, v0 + 0.5
