@@ -99,7 +99,7 @@ def orientation_cells(grey: np.ndarray, *, cell: int = 4, bins: int = ORIENTATIO
     cells = _orientation_histograms(mag, angle, cell, bins)
     energy = np.sum(cells ** 2, axis=2)
     # energy of the 2x2 block whose top-left cell is (i, j), then the mean norm over the 4 blocks of a cell
-    padded = np.pad(energy, 1, mode="edge")
+    padded = cv2.copyMakeBorder(energy, 1, 1, 1, 1, cv2.BORDER_REPLICATE)   # np.pad's "edge", without its overhead
     block = padded[:-1, :-1] + padded[1:, :-1] + padded[:-1, 1:] + padded[1:, 1:]
     inv = 1.0 / np.sqrt(block + 1e-4)
     norm = 0.25 * (inv[:-1, :-1] + inv[1:, :-1] + inv[:-1, 1:] + inv[1:, 1:])
