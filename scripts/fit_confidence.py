@@ -115,8 +115,9 @@ TRACKERS = {
 #: forward selection.  mil: the colour likelihood, the correlation filter's PSR, the inlier coverage and the
 #: presence flag: held-out cost 1.65 on the packaged tracker's frames (seeds 0 and 1; false lost 0.248, missed
 #: loss 0.033 below 0.43 for 1 frame).  The selection there takes the presence flag and ``border_gap``
-#: (1.51), which steer the tracker worse when fitted in two passes (docs/trackers.md).  The presence cues steer the search of a frame reported lost, so they change the
-#: frames this cost is measured on: another set is judged by the tracking it steers (docs/trackers.md).
+#: (1.51), which steer the tracker worse when fitted in two passes.  The presence cues steer the search of a
+#: frame reported lost, so they change the frames this cost is measured on: another set is judged by the
+#: tracking it steers (docs/trackers.md).
 PRESENCE_CUES = {"mil": tuple(c for c in mil_filter.CUES if c[0] in ("colour", "psr", "inlier_coverage", "present"))}
 #: The runs of low presence ``mil``'s lost rule may require (``lost_after``).
 LOST_AFTER = (1, 2, 3, 4, 5)

@@ -8,7 +8,7 @@ from scipy import ndimage
 from vidtrack.measure import superpixels as sp
 from vidtrack.measure.colour_model import colour_bins
 from vidtrack.measure.features import orientation_cells
-from vidtrack.measure.slic import slic
+from vidtrack.measure.slic import _kmeans, _seeds, slic
 
 
 def _two_regions(h=60, w=90, edge=37, seed=0):
@@ -53,8 +53,6 @@ def test_kmeans_assigns_each_pixel_to_the_nearest_centre_within_reach():
     """One iteration of the compiled k-means against eq. 3 evaluated with numpy: every pixel gets a centre
     within ``S`` (rounded) of it in x and y whose distance is the smallest of all those centres' (to float32
     rounding: the compiled loop may sum the terms in another order)."""
-    from vidtrack.measure.slic import _kmeans, _seeds
-
     rng = np.random.default_rng(2)
     field = cv2.resize(rng.integers(0, 255, (9, 13, 3), dtype=np.uint8), (143, 101), interpolation=cv2.INTER_CUBIC)
     lab = cv2.cvtColor(field, cv2.COLOR_BGR2Lab).astype(np.float32)

@@ -144,6 +144,13 @@ class MILMeasurerConfig:
                                                   "re-detection, lost")
 
 
+def _peak_offset(cf: CorrelationResult | None, prior: Estimate) -> float:
+    """The distance from the prediction to the filter's peak in box sizes (``sqrt(w h)``); infinite without a peak."""
+    if cf is None:
+        return np.inf
+    return float(np.linalg.norm(cf.centre - prior.box.center) / max(prior.box.scale, 1e-6))
+
+
 def fuse_peak(result: CorrelationResult, anchor: np.ndarray, weight: float, unit: float) -> np.ndarray:
     """Where the response, less ``weight`` times the squared distance from ``anchor`` in ``unit``s, peaks.
 
@@ -255,7 +262,7 @@ class MILMeasurer:
         inlier, stages = self._inlier_stages(found)   # all that does not need the filter, before waiting for it
         cf = self._wait_correlation()
         self.cf_result_ = cf
-        offset = np.inf if cf is None else np.linalg.norm(cf.centre - prior.box.center) / max(prior.box.scale, 1e-6)
+        offset = _peak_offset(cf, prior)
         redetect = cf is not None and f.redetect and searching and cf.quality >= f.reacquire and offset > 0.5
         recentre = (cf is not None and f.recentre is not None and found is not None and inlier is None
                     and cf.quality >= f.recentre and offset > 0.1)
@@ -278,7 +285,7 @@ class MILMeasurer:
             if cf is not None:   # do the two cues agree on where the target is? (box units)
                 gap = np.linalg.norm(cf.centre - np.asarray(inlier.centre)) / max(prior.box.scale, 1e-6)
                 stages["cue_agreement"] = float(gap)
-        present = cf is not None and f.present is not None and cf.quality >= f.present and offset <= 0.5
+        present = self._present(cf, offset)
         return Superpixels(labels=labels, features=found.features, scores=scores, inliers=inliers, box=box,
                            quality=quality, search_region=found.region.box, stages=stages, present=bool(present))
 
@@ -319,8 +326,7 @@ class MILMeasurer:
         size = cf.size if f.size_from == "cf" else prior.box.size
         box = Box.from_center(float(cf.centre[0]), float(cf.centre[1]), float(size[0]), float(size[1]))
         empty = np.zeros(0)
-        present = (f.present is not None and cf.quality >= f.present
-                   and np.linalg.norm(cf.centre - prior.box.center) <= 0.5 * prior.box.scale)
+        present = self._present(cf, _peak_offset(cf, prior))
         return Superpixels(labels=np.zeros((0, 0), np.int32), features=np.zeros((0, 0)), scores=empty,
                            inliers=empty.astype(bool), box=box, quality=float(cf.quality),
                            stages={"correlation": cf.response.astype(np.float32), "psr": float(cf.psr)},
@@ -350,6 +356,11 @@ class MILMeasurer:
             if f.size_from == "cf" and cf.quality >= f.min_quality:
                 size = cf.size
         return Box.from_center(float(fx), float(fy), float(size[0]), float(size[1])), quality
+
+    def _present(self, cf: CorrelationResult | None, offset: float) -> bool:
+        """``fusion.present``: a filter peak of that quality, ``offset <= 0.5`` box sizes from the prediction."""
+        f = self.config.fusion
+        return cf is not None and f.present is not None and cf.quality >= f.present and offset <= 0.5
 
     def _searching(self, prior: Estimate) -> bool:
         """Search as when lost: the last frame was only predicted, or (``search_when_lost``) reported lost."""
