@@ -18,11 +18,23 @@ adds a table of each configuration's mean AUC per seed, and over the seeds,
 over just those sequences: whether a change helps the whole split or only a
 kind of sequence in it.
 
+Several dataset folders sweep the same sequences in each: *tune* and the
+copies of it that ``scripts/occlude_sequences.py``, ``stride_sequences.py``
+and ``zoom_sequences.py`` write, so a setting is judged on all of them in one
+run (``docs/evaluation.md``, "What *tune* rewards").  Each folder gets its
+tables, headed by its path, and a last table gives each configuration's mean
+over the seeds in every folder and over the folders::
+
+    python scripts/tune_sweep.py ../shared/data/sequences OCCLUDED ZOOMED --filter mil \
+        --config '' --config 'kalman.r_size=0.1'
+
 A key the tracker does not take, a value of the wrong type, a malformed
-``--seeds`` or ``--group`` stops the sweep before it starts, with one line
-on stderr and exit status 2.  It refuses sequences of the *validate* split: those
+``--seeds`` or ``--group``, or a folder without one of the sequences stops the
+sweep before it starts, with one line on stderr and exit status 2.  It refuses sequences of the *validate* split: those
 are reported, never tuned on (``../shared/data/sequences/INDEX.md``).
-Per-sequence AUCs go to ``--json``.
+Per-sequence AUCs go to ``--json``: one entry per folder and configuration,
+``{"dataset", "settings", "auc": {sequence: {seed: AUC}}}``, the folders in
+the order given.
 """
 
 from __future__ import annotations
@@ -41,6 +53,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 from vidtrack.config import parse_setting, read_toml  # noqa: E402
 from vidtrack.errors import UsageError  # noqa: E402
 from vidtrack.eval import metrics  # noqa: E402
+from vidtrack.errors import DatasetError  # noqa: E402
 from vidtrack.eval.datasets import load_dataset  # noqa: E402
 from vidtrack.recipes import build_tracker, recipe_config  # noqa: E402
 from vidtrack.sources import ImageFolderSource  # noqa: E402
@@ -90,9 +103,31 @@ def label(settings: dict) -> str:
     return " ".join(f"{key}={value}" for key, value in settings.items()) or "(defaults)"
 
 
+def print_tables(results: dict, configs: list[dict], seeds: list[int], names: list[str],
+                 groups: list[tuple[str, list[str]]]) -> None:
+    """One folder's tables: every configuration's mean AUC per seed, then each group's."""
+    print("| config | " + " | ".join(f"seed {s}" for s in seeds) + " | mean | worst seed | widest spreads |")
+    print("|---|" + "---|" * (len(seeds) + 3))
+    for i, c in enumerate(configs):
+        per_seed = [np.mean([results[i, s, n] for n in names]) for s in seeds]
+        spread = {n: max(results[i, s, n] for s in seeds) - min(results[i, s, n] for s in seeds) for n in names}
+        widest = sorted(spread, key=spread.get, reverse=True)[:3]
+        print(f"| `{label(c)}` | " + " | ".join(f"{v:.3f}" for v in per_seed)
+              + f" | **{np.mean(per_seed):.3f}** | {min(per_seed):.3f} | "
+              + ", ".join(f"{n} {spread[n]:.2f}" for n in widest) + " |", flush=True)
+    for group, members in groups:
+        print(f"\n{group} ({', '.join(members)}): mean AUC per seed\n")
+        print("| config | " + " | ".join(f"seed {s}" for s in seeds) + " | mean |")
+        print("|---|" + "---|" * (len(seeds) + 1))
+        for i, c in enumerate(configs):
+            per_seed = [np.mean([results[i, s, n] for n in members]) for s in seeds]
+            print(f"| `{label(c)}` | " + " | ".join(f"{v:.3f}" for v in per_seed) + f" | **{np.mean(per_seed):.3f}** |")
+
+
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("dataset")
+    parser.add_argument("datasets", nargs="+", metavar="dataset",
+                        help="a folder of the sequences (several: the same sequences swept in each)")
     parser.add_argument("--filter", default="mil")
     parser.add_argument("--config", action="append", default=[],
                         help="one configuration: 'KEY=VALUE KEY=VALUE ...' or FILE.toml (repeat for several)")
@@ -126,28 +161,35 @@ def main(argv=None) -> int:
             recipe_config(args.filter, settings)
     except UsageError as exc:
         stop(str(exc))
+    for dataset in args.datasets:   # every folder holds every sequence, readable
+        try:
+            load_dataset(dataset, names)
+        except DatasetError as exc:
+            stop(str(exc))
     with ProcessPoolExecutor(args.jobs) as pool:
-        futures = {(i, s, n): pool.submit(run_one, args.dataset, n, args.filter, c, s)
+        futures = {(d, i, s, n): pool.submit(run_one, dataset, n, args.filter, c, s)
+                   for d, dataset in enumerate(args.datasets)
                    for i, c in enumerate(configs) for s in seeds for n in names}
         results = {key: f.result() for key, f in futures.items()}
-    print("| config | " + " | ".join(f"seed {s}" for s in seeds) + " | mean | worst seed | widest spreads |")
-    print("|---|" + "---|" * (len(seeds) + 3))
-    table = []
-    for i, c in enumerate(configs):
-        per_seed = [np.mean([results[i, s, n] for n in names]) for s in seeds]
-        spread = {n: max(results[i, s, n] for s in seeds) - min(results[i, s, n] for s in seeds) for n in names}
-        widest = sorted(spread, key=spread.get, reverse=True)[:3]
-        print(f"| `{label(c)}` | " + " | ".join(f"{v:.3f}" for v in per_seed)
-              + f" | **{np.mean(per_seed):.3f}** | {min(per_seed):.3f} | "
-              + ", ".join(f"{n} {spread[n]:.2f}" for n in widest) + " |", flush=True)
-        table.append({"settings": c, "auc": {n: {s: results[i, s, n] for s in seeds} for n in names}})
-    for group, members in groups:
-        print(f"\n{group} ({', '.join(members)}): mean AUC per seed\n")
-        print("| config | " + " | ".join(f"seed {s}" for s in seeds) + " | mean |")
-        print("|---|" + "---|" * (len(seeds) + 1))
+    several = len(args.datasets) > 1
+    table, means = [], {}
+    for d, dataset in enumerate(args.datasets):
+        mine = {key[1:]: auc for key, auc in results.items() if key[0] == d}
+        if several:
+            print(f"{'' if d == 0 else chr(10)}{dataset}:\n")
+        print_tables(mine, configs, seeds, names, groups)
         for i, c in enumerate(configs):
-            per_seed = [np.mean([results[i, s, n] for n in members]) for s in seeds]
-            print(f"| `{label(c)}` | " + " | ".join(f"{v:.3f}" for v in per_seed) + f" | **{np.mean(per_seed):.3f}** |")
+            means[d, i] = float(np.mean([mine[i, s, n] for s in seeds for n in names]))
+            table.append({"dataset": dataset, "settings": c,
+                          "auc": {n: {s: mine[i, s, n] for s in seeds} for n in names}})
+    if several:
+        print("\nMean AUC over the seeds, per folder and over the folders\n")
+        print("| config | " + " | ".join(args.datasets) + " | all |")
+        print("|---|" + "---|" * (len(args.datasets) + 1))
+        for i, c in enumerate(configs):
+            per_folder = [means[d, i] for d in range(len(args.datasets))]
+            print(f"| `{label(c)}` | " + " | ".join(f"{v:.3f}" for v in per_folder)
+                  + f" | **{np.mean(per_folder):.3f}** |")
     if args.json:
         Path(args.json).write_text(json.dumps(table, indent=1))
     return 0

@@ -73,3 +73,45 @@ def test_bad_input_stops_the_sweep_before_it_runs_with_one_line(two_walkers, arg
     done = sweep(str(two_walkers), "--filter", "ms", "--sequences", "Slow,Fast", *argv)
     assert done.returncode == 2 and done.stdout == ""
     assert len(done.stderr.splitlines()) == 1 and message in done.stderr, done.stderr
+
+
+def summary_rows(stdout: str) -> list[str]:
+    """The rows of the last table, the means per folder."""
+    lines = stdout.splitlines()
+    start = next(k for k, line in enumerate(lines) if line.startswith("Mean AUC over the seeds, per folder"))
+    return [line for line in lines[start + 1:] if line.startswith("| `")]
+
+
+def test_several_folders_are_swept_alike_and_summed_up_per_folder(two_walkers, tmp_path):
+    faster = tmp_path / "faster"   # the same sequence names, the targets faster
+    write_sequence(faster / "Slow", frames=20, size=(160, 120), box=(30, 40, 24, 28), velocity=(2.0, 1.0))
+    write_sequence(faster / "Fast", frames=20, size=(160, 120), box=(20, 40, 24, 28), velocity=(6.0, 1.0), seed=1)
+    out = tmp_path / "sweep.json"
+    done = sweep(str(two_walkers), str(faster), "--filter", "ms", "--sequences", "Slow,Fast", "--seeds", "0,1",
+                 "--jobs", "1", "--config", "", "--config", "bins=8", "--json", str(out))
+    assert done.returncode == 0, done.stderr
+    table = json.loads(out.read_text())
+    assert [(e["dataset"], e["settings"]) for e in table] == [
+        (str(two_walkers), {}), (str(two_walkers), {"bins": "8"}), (str(faster), {}), (str(faster), {"bins": "8"})]
+    # each folder's own table, headed by its path, holds its entries' means per seed
+    for folder in (two_walkers, faster):
+        lines = done.stdout.splitlines()
+        start = lines.index(f"{folder}:")
+        rows = [line for line in lines[start + 1:] if line.startswith("| `")][:2]
+        for row, entry in zip(rows, [e for e in table if e["dataset"] == str(folder)]):
+            per_seed = [sum(entry["auc"][n][s] for n in ("Slow", "Fast")) / 2 for s in ("0", "1")]
+            assert [float(c) for c in row.split("|")[2:4]] == pytest.approx(per_seed, abs=5e-4)
+    rows = summary_rows(done.stdout)
+    assert len(rows) == 2
+    for i, row in enumerate(rows):
+        per_folder = [sum(sum(e["auc"][n].values()) for n in ("Slow", "Fast")) / 4 for e in table[i::2]]
+        assert cells(row) == pytest.approx(per_folder + [sum(per_folder) / 2], abs=5e-4)
+    assert cells(rows[0])[0] != cells(rows[0])[1]   # the faster copy is followed differently
+
+
+def test_a_folder_without_a_swept_sequence_stops_the_sweep_with_one_line(two_walkers, tmp_path):
+    partial = tmp_path / "partial"
+    write_sequence(partial / "Slow", frames=20, size=(160, 120), box=(30, 40, 24, 28), velocity=(1.0, 0.5))
+    done = sweep(str(two_walkers), str(partial), "--filter", "ms", "--sequences", "Slow,Fast")
+    assert done.returncode == 2 and done.stdout == ""
+    assert len(done.stderr.splitlines()) == 1 and "Fast" in done.stderr and str(partial) in done.stderr, done.stderr
