@@ -30,8 +30,9 @@ over the seeds in every folder and over the folders::
 
 A key the tracker does not take, a value of the wrong type, a malformed
 ``--seeds`` or ``--group``, or a folder without one of the sequences stops the
-sweep before it starts, with one line on stderr and exit status 2.  It refuses sequences of the *validate* split: those
-are reported, never tuned on (``../shared/data/sequences/INDEX.md``).
+sweep before it starts, with one line on stderr and exit status 2.  It
+refuses sequences of the *validate* split: those are reported, never tuned on
+(``../shared/data/sequences/INDEX.md``).
 Per-sequence AUCs go to ``--json``: one entry per folder and configuration,
 ``{"dataset", "settings", "auc": {sequence: {seed: AUC}}}``, the folders in
 the order given.
@@ -51,9 +52,8 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from vidtrack.config import parse_setting, read_toml  # noqa: E402
-from vidtrack.errors import UsageError  # noqa: E402
+from vidtrack.errors import DatasetError, UsageError  # noqa: E402
 from vidtrack.eval import metrics  # noqa: E402
-from vidtrack.errors import DatasetError  # noqa: E402
 from vidtrack.eval.datasets import load_dataset  # noqa: E402
 from vidtrack.recipes import build_tracker, recipe_config  # noqa: E402
 from vidtrack.sources import ImageFolderSource  # noqa: E402
@@ -172,22 +172,21 @@ def main(argv=None) -> int:
                    for i, c in enumerate(configs) for s in seeds for n in names}
         results = {key: f.result() for key, f in futures.items()}
     several = len(args.datasets) > 1
-    table, means = [], {}
+    table = []
     for d, dataset in enumerate(args.datasets):
         mine = {key[1:]: auc for key, auc in results.items() if key[0] == d}
         if several:
-            print(f"{'' if d == 0 else chr(10)}{dataset}:\n")
+            print(("\n" if d else "") + f"{dataset}:\n")
         print_tables(mine, configs, seeds, names, groups)
-        for i, c in enumerate(configs):
-            means[d, i] = float(np.mean([mine[i, s, n] for s in seeds for n in names]))
-            table.append({"dataset": dataset, "settings": c,
-                          "auc": {n: {s: mine[i, s, n] for s in seeds} for n in names}})
+        table += [{"dataset": dataset, "settings": c, "auc": {n: {s: mine[i, s, n] for s in seeds} for n in names}}
+                  for i, c in enumerate(configs)]
     if several:
         print("\nMean AUC over the seeds, per folder and over the folders\n")
         print("| config | " + " | ".join(args.datasets) + " | all |")
         print("|---|" + "---|" * (len(args.datasets) + 1))
         for i, c in enumerate(configs):
-            per_folder = [means[d, i] for d in range(len(args.datasets))]
+            per_folder = [np.mean([results[d, i, s, n] for s in seeds for n in names])
+                          for d in range(len(args.datasets))]
             print(f"| `{label(c)}` | " + " | ".join(f"{v:.3f}" for v in per_folder)
                   + f" | **{np.mean(per_folder):.3f}** |")
     if args.json:
