@@ -368,16 +368,20 @@ def test_reusing_the_detection_window_matches_a_recut_window(constrained):
 
 def test_make_detector_configures_the_score_map_detector():
     """``make_detector("cf", ...)`` takes the detector's fields (strings converted, an unknown one refused); the
-    detector's filter is mil's but for learning from a re-cut window and DSST's 512-pixel scale samples."""
+    detector's filter is mil's but for learning from a re-cut window, from the average sample over the whole box
+    at every update, and DSST's 512-pixel scale samples."""
     detector = make_detector("cf", scale_filter="false", learn_above=0.3, size_limits=(0.5, 2.0))
     assert isinstance(detector, CorrelationScoreMapMeasurer)
     assert detector.config.scale_filter is False and detector.config.learn_above == 0.3
     assert detector.config.size_limits == (0.5, 2.0)
     with pytest.raises(UsageError, match="scale_filter"):
         make_detector("cf", scale_filters=False)
+    with pytest.raises(UsageError, match="solve_interval"):     # a re-defaulted field keeps its bounds
+        make_detector("cf", solve_interval=0)
     mil, own = CorrelationConfig(), CorrelationDetectorConfig()
     differ = {f.name for f in fields(CorrelationConfig) if getattr(mil, f.name) != getattr(own, f.name)}
-    assert differ == {"reuse_sample", "scale_area"} and own.scale_area == 512.0
+    assert differ == {"reuse_sample", "scale_area", "second_moment", "solve_interval", "support", "admm_iterations"}
+    assert own.scale_area == 512.0 and not own.second_moment and own.solve_interval == 1 and own.support == 1.0
     rng = np.random.default_rng(5)
     box = Box.from_center(100, 100, 30, 36)
     img, patch = scene(rng, box.center, box.size)

@@ -112,21 +112,22 @@ def test_mil_tracks_a_moving_square_and_exposes_stages():
         assert name in state.scalars
 
 
-def _behind_the_post(speed, seed=0, settings=None):
-    """A square passes behind a grey post as wide as itself: the states, whether each frame hides it wholly, the last centre."""
+def _behind_the_post(speed, seed=0, settings=None, post=24):
+    """A 24-pixel square passes behind a grey post ``post`` pixels wide: the states, whether each frame hides it
+    wholly, the last centre."""
     def scene(index, cx):
         img = _scene(index, cx, 60).image
-        img[:, 80:104] = (128, 128, 128)  # a grey post, as wide as the square
+        img[:, 80:80 + post] = (128, 128, 128)
         return Frame(index, img)
 
     tracker = build_tracker("mil", seed=seed, settings=settings)
     tracker.initialize(scene(0, 30), Box(18, 48, 24, 24))
-    last = int(88 / speed)
+    last = int((64 + post) / speed)
     states, hidden = [], []
     for k in range(1, last + 1):
         cx = 30 + speed * k
         states.append(tracker.step(scene(k, cx)))
-        hidden.append(80 <= cx - 12 and cx + 12 <= 104)   # entirely behind the post
+        hidden.append(80 <= cx - 12 and cx + 12 <= 80 + post)   # entirely behind the post
     return states, hidden, 30 + speed * last
 
 
@@ -157,15 +158,15 @@ def test_mil_reacquires_a_target_that_emerges_from_behind_an_occluder(seed):
         assert states[-1].status == "tracking" and abs(states[-1].box.center[0] - centre) < 6, speed
 
 
-def test_without_occlusion_reasoning_mil_stays_behind_the_occluder():
-    """The scenes the reasoning recovers at every speed, with it switched off: at one speed at least the
-    measurements of the half-hidden square pull the box back onto the post, and it is not found again
-    (what the reasoning is for)."""
-    behind = []
-    for speed in (1.8, 2.0, 2.2):
-        states, _, centre = _behind_the_post(speed, settings={"kalman.occlusion_below": None})
-        behind.append(abs(states[-1].box.center[0] - centre) > 24)
-    assert any(behind)
+@pytest.mark.parametrize("speed", [1.8, 2.2])
+def test_without_occlusion_reasoning_mil_stays_behind_a_post_wider_than_the_target(speed):
+    """A post a third wider than the square hides it wholly for a few frames: with the occlusion reasoning the
+    box is carried through and the square found again; without it the measurements of the half-hidden square
+    pull the box back onto the post, and it is not found again (what the reasoning is for)."""
+    states, _, centre = _behind_the_post(speed, post=32)
+    assert states[-1].status == "tracking" and abs(states[-1].box.center[0] - centre) < 6
+    states, _, centre = _behind_the_post(speed, post=32, settings={"kalman.occlusion_below": None})
+    assert abs(states[-1].box.center[0] - centre) > 24
 
 
 def test_pegasos_iterate_averaging_scores_with_the_mean_iterate():

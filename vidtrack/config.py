@@ -44,6 +44,15 @@ def option(default: Any, doc: str, *, minimum: float | None = None, above: float
     return dataclasses.field(default=default, metadata={"doc": doc, "minimum": minimum, "above": above})
 
 
+def redefault(config_class: type, name: str, default: Any) -> Any:
+    """The field ``name`` of the config dataclass ``config_class`` with a new ``default``, its doc and bounds kept.
+
+    For a subclass that differs from its parent in a few defaults.
+    """
+    metadata = config_class.__dataclass_fields__[name].metadata
+    return option(default, metadata["doc"], minimum=metadata.get("minimum"), above=metadata.get("above"))
+
+
 def _check_bounds(value: Any, metadata: Mapping) -> None:
     """Raise ValueError when the number ``value`` is under the field's ``minimum`` or not above its ``above``."""
     if not isinstance(value, (int, float)) or isinstance(value, bool):

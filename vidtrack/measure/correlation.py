@@ -18,15 +18,22 @@ same translation filter evaluated at a few scales per frame (SAMF's search,
 ``scale_factors`` with non-unit scales discounted by ``scale_penalty``), is
 kept as an option.
 
-Three departures from DSST, each a field of :class:`CorrelationConfig` and
+The departures from DSST, each a field of :class:`CorrelationConfig` and
 all on by default:
 
-* ``constrained``: the filter is restricted to the target's own cells and
-  learned by ADMM on every shift of the window
-  (:func:`~vidtrack.measure.dcf.constrained_filter`, Kiani Galoogahi et
-  al., "Learning Background-Aware Correlation Filters for Visual
-  Tracking"), so the static background a wide window holds cannot outvote
-  a small moving target;
+* ``constrained``: the filter is restricted to the target's own cells (the
+  central ``support`` of the box's sides) and learned by ADMM on every
+  shift of the window (:func:`~vidtrack.measure.dcf.constrained_filter`,
+  Kiani Galoogahi et al., "Learning Background-Aware Correlation Filters
+  for Visual Tracking"), so the static background a wide window holds
+  cannot outvote a small moving target;
+* ``second_moment``: that filter fits every past sample, faded at the
+  learning rate, instead of their average (ECO's objective, Danelljan et
+  al., "ECO: Efficient Convolution Operators for Tracking", eq. 3), through
+  the samples' running second moment per frequency
+  (:mod:`vidtrack.measure.sample_moments`); it is solved every
+  ``solve_interval`` frames, the samples gathered at each (ECO's sparse
+  updates);
 * ``colour_merge``: the response is merged with the colour-histogram score
   of Staple (Bertinetto et al., "Staple: Complementary Learners for
   Real-Time Tracking"; :mod:`vidtrack.measure.colour_model`);
@@ -61,6 +68,7 @@ from .dcf import (constrained_filter, correlation_response, cosine_window, dcf_t
                   peak_to_sidelobe, running_average, shift_cells, subpixel_peak)
 from .features import cell_features
 from .image import cut_window
+from .sample_moments import accumulate_second_moment
 from .scale_filter import ScaleFilter
 
 
@@ -96,8 +104,14 @@ class CorrelationConfig:
     colour_rate: float = option(0.04, "learning rate of the colour histograms")
     constrained: bool = option(True, "learn the filter restricted to the target's cells by ADMM (BACF) "
                                      "instead of DSST's running numerator and denominator")
-    admm_iterations: int = option(2, "ADMM iterations per frame (five times as many on the first)")
+    admm_iterations: int = option(4, "ADMM iterations per solve (five times as many on the first)")
     admm_mu: float = option(0.01, "ADMM penalty, relative to the model's spectral energy")
+    second_moment: bool = option(True, "learn the constrained filter from every past sample, faded (their running "
+                                        "second moment: ECO's objective), instead of from their average")
+    solve_interval: int = option(3, "the constrained filter is solved at every this many updates; its samples are "
+                                    "gathered at each (ECO's sparse updates)", minimum=1)
+    support: float = option(0.85, "the target's cells, where the constrained filter may be non-zero: this fraction "
+                                 "of the box's sides at the window's centre", above=0.0)
     reuse_sample: bool = option(True, "learn from the detection's window shifted in the Fourier domain "
                                       "instead of a re-cut one")
     reuse_tolerance: float = option(0.1, "the detection's window is reused when the learned box's size is "
@@ -206,7 +220,8 @@ class CorrelationFilter:
         self.box_cells_ = box.size / self.cell_step(box.size)     # the box's (w, h) in cells
         self.mask_ = self.target_mask()
         self.target_fft_ = fft.rfft2(gaussian_response(self.shape_, c.sigma_factor * box_cells).astype(np.float32))
-        self.numerator_ = self.denominator_ = self.model_fft_ = self.admm_state_ = None
+        self.numerator_ = self.denominator_ = self.model_fft_ = self.admm_state_ = self.moment_ = None
+        self.updates_since_solve_ = 0
         self.last_sample_ = None
         self.scale_ = make_scale_filter(c)
         self.colour_model_ = (ColourHistogramModel(bins=c.colour_bins, learning_rate=c.colour_rate)
@@ -237,18 +252,37 @@ class CorrelationFilter:
                                           offset=shift * c.cell, index=index)
             f = fft.rfft2(self.taper(shift_cells(raw, shift)), axes=(0, 1))
         if c.constrained:
-            self.model_fft_ = running_average((self.model_fft_,), (f,), rate)[0]
-            first = self.admm_state_ is None
-            self.filter_fft_, *state = constrained_filter(
-                self.model_fft_, self.target_fft_, self.mask_, self.shape_, lam=c.lam,
-                iterations=c.admm_iterations * (5 if first else 1), mu=c.admm_mu, start=self.admm_state_)
-            self.admm_state_ = tuple(state)
+            if not self._learn_constrained(f, rate):
+                return
         else:
             num, den = dcf_terms(f, self.target_fft_)
             self.numerator_, self.denominator_ = running_average((self.numerator_, self.denominator_), (num, den), rate)
             self.filter_fft_ = self.numerator_ / (self.denominator_ + c.lam)[:, :, None]
         if c.quality_from == "target":
             self.target_filter_fft_ = fft.rfft2(self.spatial_filter(target_only=True), axes=(0, 1))
+
+    def _learn_constrained(self, f: np.ndarray, rate: float) -> bool:
+        """Gather the sample spectrum ``f`` and, every ``solve_interval`` updates (and at a restart), solve by ADMM.
+
+        Returns whether the filter was solved (it is otherwise unchanged).
+        """
+        c = self.config
+        self.model_fft_ = running_average((self.model_fft_,), (f,), rate)[0]
+        if c.second_moment:
+            if self.moment_ is None or rate >= 1.0:
+                self.moment_ = np.zeros(f.shape + f.shape[-1:], np.complex128)
+            accumulate_second_moment(self.moment_, f, rate)
+        first = self.admm_state_ is None
+        self.updates_since_solve_ += 1
+        if not first and rate < 1.0 and self.updates_since_solve_ < c.solve_interval:
+            return False
+        self.updates_since_solve_ = 0
+        self.filter_fft_, *state = constrained_filter(
+            self.model_fft_, self.target_fft_, self.mask_, self.shape_, lam=c.lam,
+            iterations=c.admm_iterations * (5 if first else 1), mu=c.admm_mu, start=self.admm_state_,
+            moment=self.moment_)
+        self.admm_state_ = tuple(state)
+        return True
 
     def window(self, image: np.ndarray, centre, box_size, scale: float = 1.0) -> tuple:
         """The sample :meth:`respond` correlates: ``(centre, size, patch, raw cell features, colour bins, spectrum)``.
@@ -346,9 +380,9 @@ class CorrelationFilter:
         return h
 
     def target_mask(self) -> np.ndarray:
-        """``(h, w)`` float32: 1 on the box's own cells (rounded out) at the window's centre, 0 elsewhere."""
+        """``(h, w)`` float32: 1 on the box's central ``support`` of cells (rounded out) at the window's centre, 0 elsewhere."""
         hc, wc = self.shape_
-        half = np.ceil(self.box_cells_ / 2.0).astype(int)
+        half = np.ceil(self.box_cells_ * self.config.support / 2.0).astype(int)
         mask = np.zeros((hc, wc), np.float32)
         mask[max(hc // 2 - half[1], 0):hc // 2 + half[1] + 1, max(wc // 2 - half[0], 0):wc // 2 + half[0] + 1] = 1
         return mask

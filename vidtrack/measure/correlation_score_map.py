@@ -15,7 +15,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from ..config import option
+from ..config import option, redefault
 from ..types import Box, Estimate, Frame, ScoreMap
 from .correlation import CorrelationConfig, CorrelationFilter, CorrelationResult
 from .scale_filter import ScaleFilter
@@ -25,15 +25,19 @@ from .scale_filter import ScaleFilter
 class CorrelationDetectorConfig(CorrelationConfig):
     """The score-map detector: the :class:`~vidtrack.measure.correlation.CorrelationConfig` fields and its own.
 
-    It differs from ``mil``'s filter in two fields: it learns from a re-cut
-    window (``reuse_sample`` off), and its scale filter resamples each scale
-    to DSST's 512 pixels (``scale_area``).
+    It differs from ``mil``'s filter in how it learns: from a re-cut window
+    (``reuse_sample`` off), from the average sample over the box's full extent
+    at every update (``second_moment`` off, ``support`` 1, ``solve_interval``
+    1, ``admm_iterations`` 2), and with each scale of its scale filter
+    resampled to DSST's 512 pixels (``scale_area``).
     """
 
-    reuse_sample: bool = option(False, "learn from the detection's window shifted in the Fourier domain "
-                                       "instead of a re-cut one")
-    scale_area: float = option(ScaleFilter.model_area,
-                               "pixels each scale of the scale filter's sample is resampled to", above=0.0)
+    reuse_sample: bool = redefault(CorrelationConfig, "reuse_sample", False)
+    scale_area: float = redefault(CorrelationConfig, "scale_area", ScaleFilter.model_area)
+    second_moment: bool = redefault(CorrelationConfig, "second_moment", False)
+    support: float = redefault(CorrelationConfig, "support", 1.0)
+    solve_interval: int = redefault(CorrelationConfig, "solve_interval", 1)
+    admm_iterations: int = redefault(CorrelationConfig, "admm_iterations", 2)
     learn_above: float = option(0.2, "minimum quality of the frame's detection for the filter to learn")
     lost_margin: float = option(1.5, "while lost, the re-detection region reaches this many box sizes "
                                      "on each side of the prior")

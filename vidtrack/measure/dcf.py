@@ -33,6 +33,8 @@ from __future__ import annotations
 import numpy as np
 from scipy import fft
 
+from .sample_moments import factor_regularised, mean_trace, solve_factored
+
 
 def gaussian_response(shape: tuple[int, int], sigma: float) -> np.ndarray:
     """The desired response: a Gaussian of ``sigma`` cells peaked at cell ``(0, 0)`` (circularly), ``(h, w)``."""
@@ -71,8 +73,8 @@ def correlation_response(filter_fft: np.ndarray, features_fft: np.ndarray, shape
 
 def constrained_filter(model_fft: np.ndarray, target_fft: np.ndarray, mask: np.ndarray, shape: tuple[int, int], *,
                        lam: float = 1e-2, iterations: int = 2, mu: float = 0.01, mu_step: float = 1.0,
-                       mu_max: float = 1e4, start: tuple[np.ndarray, np.ndarray] | None = None
-                       ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+                       mu_max: float = 1e4, start: tuple[np.ndarray, np.ndarray] | None = None,
+                       moment: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """A correlation filter that is zero outside ``mask``, learned by ADMM (Kiani Galoogahi et al., BACF, eqs. 5-13).
 
     Background-aware correlation filters train on every shift of the whole
@@ -93,6 +95,13 @@ def constrained_filter(model_fft: np.ndarray, target_fft: np.ndarray, mask: np.n
     and ``zeta`` (``start``) at a constant penalty, so its few iterations a
     frame keep converging while the model drifts slowly.
 
+    With ``moment``, the data term is every past sample's instead of the
+    average sample's, ``sum_j w_j || y - sum_l conj(g_l) * x_{j,l} ||^2``
+    (ECO's objective, Danelljan et al., eq. 3): the g-step solves
+    ``(S + T mu I) g = x y + T mu h - T zeta`` per frequency with ``S`` the
+    samples' second moment (:mod:`vidtrack.measure.sample_moments`), and the
+    penalty is relative to the samples' mean energy ``mean(trace S)``.
+
     Parameters
     ----------
     model_fft : (h, w', d) complex
@@ -105,6 +114,8 @@ def constrained_filter(model_fft: np.ndarray, target_fft: np.ndarray, mask: np.n
         ``(h, w)`` of the spatial window.
     start
         ``(h_fft, zeta)`` of a previous call to continue from (None: zeros).
+    moment : (h, w', d, d) complex128, optional
+        The samples' second moment (lower triangles), of which ``model_fft`` is the mean sample.
 
     Returns
     -------
@@ -115,7 +126,8 @@ def constrained_filter(model_fft: np.ndarray, target_fft: np.ndarray, mask: np.n
     x = model_fft
     y = target_fft[:, :, None]
     s_xx = np.sum(x.real ** 2 + x.imag ** 2, axis=2, keepdims=True)
-    mu = mu * float(np.mean(s_xx)) / T     # the penalty relative to the data's energy: scale-free
+    energy = float(np.mean(s_xx)) if moment is None else mean_trace(moment)
+    mu = mu * energy / T     # the penalty relative to the data's energy: scale-free
     mu_max = mu_max * mu
     g = np.zeros_like(x)
     h, zeta = (np.zeros_like(x), np.zeros_like(x)) if start is None else start
@@ -124,14 +136,20 @@ def constrained_filter(model_fft: np.ndarray, target_fft: np.ndarray, mask: np.n
     yx, s_xx_y = y * x, s_xx * y
     terms_mu = None
     for _ in range(iterations):
-        if terms_mu != mu:   # the terms that depend on the penalty alone, again only when it has grown
-            b = s_xx + T * mu
-            yx_mu, s_xx_y_mu = yx / (T * mu), s_xx_y / (T * mu)
-            terms_mu = mu
-        s_zx = np.sum(x_conj * zeta, axis=2, keepdims=True)
-        s_hx = np.sum(x_conj * h, axis=2, keepdims=True)
-        g = (yx_mu - zeta / mu + h
-             - x * (s_xx_y_mu - s_zx / mu + s_hx) / b)                                        # eq. 11
+        if moment is not None:
+            if terms_mu != mu:
+                factor = factor_regularised(moment, T * mu)
+                terms_mu = mu
+            g = solve_factored(factor, yx + (T * mu) * h - T * zeta)
+        else:
+            if terms_mu != mu:   # the terms that depend on the penalty alone, again only when it has grown
+                b = s_xx + T * mu
+                yx_mu, s_xx_y_mu = yx / (T * mu), s_xx_y / (T * mu)
+                terms_mu = mu
+            s_zx = np.sum(x_conj * zeta, axis=2, keepdims=True)
+            s_hx = np.sum(x_conj * h, axis=2, keepdims=True)
+            g = (yx_mu - zeta / mu + h
+                 - x * (s_xx_y_mu - s_zx / mu + s_hx) / b)                                    # eq. 11
         spatial = fft.irfft2(mu * g + zeta, s=shape, axes=(0, 1)) * (T / (mu * T + lam))  # eq. 12
         h = fft.rfft2(spatial * m, axes=(0, 1))
         zeta = zeta + mu * (g - h)                                                           # eq. 13
