@@ -49,6 +49,9 @@ CONFIGS = {
     "default - cf constraint (DSST filter)": with_settings(MIL, {"correlation.constrained": False}),
     "default - cf colour merge": with_settings(MIL, {"correlation.colour_merge": 0.0}),
     "default - cf sample reuse (re-cut window)": with_settings(MIL, {"correlation.reuse_sample": False}),
+    "default - cf every-sample objective (average sample, whole box, solved every frame)": with_settings(
+        MIL, {"correlation.second_moment": False, "correlation.support": 1.0, "correlation.solve_interval": 1,
+              "correlation.admm_iterations": 2}),
     "correlation filter alone (no superpixel core)": with_settings(MIL, {"fusion.core": False}),
     "default, OpenCV's SLIC instead of the compiled one": with_settings(MIL, {"superpixels.slic": "opencv"}),
     "default (mil)": MIL,
