@@ -104,7 +104,9 @@ def test_the_filter_is_solved_every_solve_interval_updates_and_follows_the_targe
         solved.append(cf.filter_fft_ is not before)
         previous = box
     assert solved == [False, False, True] * 3
+    before = cf.filter_fft_
     cf.update(frames[0][0], frames[0][1], rate=1.0)           # a restart solves at once and forgets the moment
+    assert cf.filter_fft_ is not before
     assert np.allclose(np.trace(cf.moment_, axis1=2, axis2=3).real,
                        np.sum(np.abs(cf.model_fft_) ** 2, axis=2), rtol=1e-5)
 
