@@ -112,13 +112,15 @@ TRACKERS = {
 }
 #: The cues of the presence model ``P(IoU > 0)`` that decides ``lost`` (rule ``"balance"``), judged on tune by
 #: the cost of the lost rule on held-out frames, which :func:`select_presence_cues` (``--select``) lowers by
-#: forward selection.  mil: the colour likelihood, the correlation filter's PSR, the inlier coverage and the
-#: presence flag: held-out cost 1.65 on the packaged tracker's frames (seeds 0 and 1; false lost 0.248, missed
-#: loss 0.033 below 0.43 for 1 frame).  The selection there takes the presence flag and ``border_gap``
-#: (1.51), which steer the tracker worse when fitted in two passes.  The presence cues steer the search of a
-#: frame reported lost, so they change the frames this cost is measured on: another set is judged by the
-#: tracking it steers (docs/trackers.md).
-PRESENCE_CUES = {"mil": tuple(c for c in mil_filter.CUES if c[0] in ("colour", "psr", "inlier_coverage", "present"))}
+#: forward selection.  mil: the presence flag, the box's gap to the frame's border, the inlier coverage and the
+#: verification gap, the set the selection takes: held-out cost 0.57 on the packaged tracker's frames (seeds 0
+#: and 1; false lost 0.085, missed loss 0.011 below 0.87 for 5 frames).  Without ``border_gap`` 2.07; the colour
+#: likelihood, the correlation filter's PSR, the inlier coverage and the presence flag 1.99.  A box that has lost
+#: its target comes to rest against the frame's edge, and one whose inliers also cover little of it is lost
+#: there.  The presence cues steer the search of a frame reported lost, so they change the frames this cost is
+#: measured on: another set is judged by the tracking it steers (docs/trackers.md).
+PRESENCE_CUES = {"mil": tuple(c for c in mil_filter.CUES
+                              if c[0] in ("present", "border_gap", "inlier_coverage", "verify_gap"))}
 #: The runs of low presence ``mil``'s lost rule may require (``lost_after``).
 LOST_AFTER = (1, 2, 3, 4, 5)
 #: The cues ``--select`` chooses from.

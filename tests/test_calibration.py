@@ -11,7 +11,7 @@ from vidtrack.filters import mil as mil_filter
 from vidtrack.filters import score_trackers
 from vidtrack.filters.calibration import Calibration, LostRule, load_calibration, logistic_probability
 from vidtrack.filters.mil import KalmanConfig, MILKalmanFilter
-from vidtrack.types import LOST, TRACKING, Box, Detections, ScoreMap, Superpixels
+from vidtrack.types import LOST, TRACKING, Box, Detections, Frame, ScoreMap, Superpixels
 
 
 def _calibration(**changes) -> Calibration:
@@ -112,10 +112,20 @@ def test_packaged_calibrations_match_their_filters_cues(name, cues, good, drifte
         assert status == [False] * (cal.lost_after - 1) + [True]
 
 
-def _measurement(box: Box, quality: float, psr: float, coverage: float = 0.6) -> Superpixels:
+def test_mil_reads_a_box_against_the_frames_edge_as_absent_unless_its_inliers_cover_it():
+    """A box that has lost its target comes to rest against the frame's edge: there a weak inlier coverage is
+    a loss, a few box sizes inside it is not, and inliers over most of the box keep it present at the edge."""
+    cal = load_calibration("mil")
+    inside = {**MIL_GOOD, "inlier_coverage": 0.4, "verify_gap": 0.1, "border_gap": 1.0}
+    at_edge = {**inside, "border_gap": 0.0}
+    assert cal.presence_probability(inside) >= cal.lost_below > cal.presence_probability(at_edge)
+    assert cal.presence_probability({**at_edge, "inlier_coverage": 1.0}) >= cal.lost_below
+
+
+def _measurement(box: Box, quality: float, psr: float, coverage: float = 0.6, present: bool = False) -> Superpixels:
     scores = np.array([1.0, 0.5, -1.0])
     return Superpixels(labels=np.zeros((2, 2), np.int32), features=np.zeros((3, 1)), scores=scores,
-                       inliers=np.array([True, True, False]), box=box, quality=quality,
+                       inliers=np.array([True, True, False]), box=box, quality=quality, present=present,
                        stages={"psr": psr, "inlier_coverage": coverage})
 
 
@@ -136,13 +146,17 @@ def test_mil_filter_reports_the_calibrated_probability_and_lost_by_the_presence_
     assert coast.scalars["measured"] == 0.0 and coast.scalars["coast"] == pytest.approx(np.log(6.0))
     assert coast.scalars["unmeasured"] == 1.0 and good.scalars["unmeasured"] == 0.0
     assert coast.confidence < 0.5 < good.confidence and cal.presence_probability(coast.scalars) < cal.lost_below
-    # a weak measurement (inliers on 5 % of the box): tracking until the presence has stayed low for lost_after
+    # a weak measurement (inliers on 5 % of the box) against the frame's edge: tracking until the presence has
+    # stayed low for lost_after frames
+    kf = MILKalmanFilter(KalmanConfig(confidence="mil"))
+    kf.initialize(box, Frame(0, np.zeros((200, 140, 3), np.uint8)))   # the box's right side on the frame's edge
     kf.predict()
-    kf.update(_measurement(box, 0.9, 20.0))
+    assert kf.update(_measurement(box, 0.9, 20.0, coverage=0.95, present=True)).status == TRACKING
     weak = []
     for _ in range(cal.lost_after + 1):
         kf.predict()
-        weak.append(kf.update(_measurement(box, 0.2, 4.0, coverage=0.05)))
+        weak.append(kf.update(_measurement(box, 0.2, 4.0, coverage=0.05, present=True)))
+    assert weak[0].scalars["border_gap"] == pytest.approx(0.0, abs=1e-6)
     assert all(cal.presence_probability(w.scalars) < cal.lost_below for w in weak)
     assert [w.status for w in weak] == [TRACKING] * (cal.lost_after - 1) + [LOST, LOST]
     raw = MILKalmanFilter(KalmanConfig(confidence=None))   # uncalibrated: the quality, lost when not measured
