@@ -114,7 +114,7 @@ def test_packaged_calibrations_match_their_filters_cues(name, cues, good, drifte
 
 def test_mil_reads_a_box_against_the_frames_edge_as_absent_unless_its_inliers_cover_it():
     """A box that has lost its target comes to rest against the frame's edge: there a weak inlier coverage is
-    a loss, a few box sizes inside it is not, and inliers over most of the box keep it present at the edge."""
+    a loss, a box size or more inside the frame it is not, and inliers over most of the box keep it present."""
     cal = load_calibration("mil")
     inside = {**MIL_GOOD, "inlier_coverage": 0.4, "verify_gap": 0.1, "border_gap": 1.0}
     at_edge = {**inside, "border_gap": 0.0}
