@@ -26,7 +26,12 @@ a,b,...`` (repeatable) the same held-out figures for a set of cues of one's
 own on the same frames, to weigh a set against the packaged one.  ``--cache DIR``
 keeps the frames to refit without tracking again; ``--table`` prints false
 lost and missed loss at every threshold (``mil``: of its lost rule, on the
-held-out frames).
+held-out frames).  Several dataset folders pool their frames: *tune* and the
+copies of it that ``scripts/occlude_sequences.py``, ``edge_sequences.py`` and
+the like write, each sequence held out of a fold together with its copies::
+
+    python scripts/fit_confidence.py ../shared/data/sequences EDGE --trackers mil --seeds 0,1 --select \
+        --cache /tmp/frames --out /tmp/fit
 
 ``mil``'s ``lost`` status has a model of its own: a second logistic
 regression, on cues of its own (:data:`PRESENCE_CUES`), of ``IoU > 0`` (the
@@ -135,16 +140,18 @@ THRESHOLD_RULES = {
 }
 
 
-def collect(name: str, sequences, seeds, calibrated: bool = False) -> tuple[list[dict], np.ndarray]:
+def collect(name: str, folders, seeds, calibrated: bool = False) -> tuple[list[dict], np.ndarray]:
     """Per scored frame: the filter's scalars, and its IoU with the ground truth.
 
+    ``folders``: one list of sequences per dataset folder; each row records its folder's index as
+    ``copy`` (a sequence and its copies keep one ``sequence`` name, so a fold holds them out together).
     ``calibrated``: run the tracker with its packaged calibration (else switched off).
     """
     _, off, _ = TRACKERS[name]
     off = {} if calibrated else off
     rows, ious = [], []
     for seed in seeds:
-        for seq in sequences:
+        for copy, seq in ((copy, seq) for copy, sequences in enumerate(folders) for seq in sequences):
             start, stop = seq.eval_range
             source = ImageFolderSource(seq.path, files=list(seq.files[start:stop]))
             tracker = build_tracker(name, seed=seed, settings=off)
@@ -158,15 +165,15 @@ def collect(name: str, sequences, seeds, calibrated: bool = False) -> tuple[list
             valid = annotated_rows(seq.ground_truth[start:stop])
             for k in range(1, len(boxes)):
                 if valid[k]:
-                    rows.append({**scalars[k], "sequence": seq.name, "seed": seed})
+                    rows.append({**scalars[k], "sequence": seq.name, "seed": seed, "copy": copy})
                     ious.append(iou[k])
-            print(f"  {name} seed {seed} {seq.name}: {len(boxes)} frames", file=sys.stderr, flush=True)
+            print(f"  {name} seed {seed} {seq.path}: {len(boxes)} frames", file=sys.stderr, flush=True)
     return rows, np.array(ious)
 
 
 def run_starts(rows: list[dict]) -> np.ndarray:
-    """``(N,)`` bool: the row opens a tracking run (its sequence or seed differs from the previous row's)."""
-    keys = [(r.get("sequence", ""), r.get("seed", 0)) for r in rows]
+    """``(N,)`` bool: the row opens a tracking run (its sequence, seed or folder differs from the previous row's)."""
+    keys = [(r.get("sequence", ""), r.get("seed", 0), r.get("copy", 0)) for r in rows]
     return np.array([k == 0 or keys[k] != keys[k - 1] for k in range(len(keys))], bool)
 
 
@@ -427,7 +434,9 @@ def fit_cues(cues, rule: str, rows: list[dict], ious: np.ndarray, C: float, pres
 
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("dataset")
+    parser.add_argument("dataset", nargs="+",
+                        help="dataset folder(s): the sequences are read from each, their frames pooled, and each "
+                             "sequence is held out with its copies")
     parser.add_argument("--trackers", default="mil,nh,pf,bayes")
     parser.add_argument("--sequences", default=TUNE)
     parser.add_argument("--seeds", default="0")
@@ -465,11 +474,11 @@ def main(argv=None) -> int:
                 print(f"fit_confidence: --compare {','.join(spec)}: {bad[0]!r} is not a cue of {name} "
                       f"({', '.join(sorted(known))})", file=sys.stderr)
                 return 2
-    sequences = load_dataset(args.dataset, args.sequences.split(","))
+    folders = [load_dataset(dataset, args.sequences.split(",")) for dataset in args.dataset]
     seeds = [int(s) for s in args.seeds.split(",")]
     for name in names:
         for run in range(args.passes):
-            cal, rows, ious = fit_pass(name, sequences, seeds, args, calibrated=run > 0)
+            cal, rows, ious = fit_pass(name, folders, seeds, args, calibrated=run > 0)
             args.out.mkdir(parents=True, exist_ok=True)
             (args.out / f"{name}.json").write_text(json.dumps(document(name, cal, rows, ious, args, seeds, run + 1),
                                                               indent=1) + "\n", encoding="utf-8")
@@ -477,11 +486,12 @@ def main(argv=None) -> int:
     return 0
 
 
-def fit_pass(name, sequences, seeds, args, *, calibrated: bool):
+def fit_pass(name, folders, seeds, args, *, calibrated: bool):
     """One pass: collect the frames (or read them from the cache), fit, print the tune figures."""
     cache = None
     if args.cache is not None:
-        cache = args.cache / f"{name}-{'-'.join(map(str, seeds))}{'-calibrated' if calibrated else ''}.json"
+        copies = "".join(f"-{Path(d).resolve().name}" for d in args.dataset[1:])
+        cache = args.cache / f"{name}-{'-'.join(map(str, seeds))}{copies}{'-calibrated' if calibrated else ''}.json"
     if cache is not None and cache.is_file():
         saved = json.loads(cache.read_text(encoding="utf-8"))
         rows, ious = saved["rows"], np.array(saved["ious"])
@@ -491,7 +501,7 @@ def fit_pass(name, sequences, seeds, args, *, calibrated: bool):
         if missing:   # frames of an older tracker: they would be fitted on the fill values
             raise SystemExit(f"fit_confidence: {cache} has no frame with {', '.join(missing)}; delete it to collect again")
     else:
-        rows, ious = collect(name, sequences, seeds, calibrated)
+        rows, ious = collect(name, folders, seeds, calibrated)
         if cache is not None:
             cache.parent.mkdir(parents=True, exist_ok=True)
             cache.write_text(json.dumps({"rows": rows, "ious": ious.tolist()}), encoding="utf-8")
@@ -552,6 +562,7 @@ def document(name: str, cal: Calibration, rows, ious, args, seeds, passes: int) 
     """The JSON file's content: the calibration and what it was fitted on."""
     data = cal.to_dict()
     data["fitted_on"] = {"sequences": args.sequences, "seeds": seeds, "frames": len(rows), "passes": passes,
+                         **({"copies": [Path(d).resolve().name for d in args.dataset[1:]]} if len(args.dataset) > 1 else {}),
                          "positive_rate": round(float(np.mean(ious > 0.5)), 4),
                          "threshold_rule": THRESHOLD_RULES[TRACKERS[name][2]]}
     return data

@@ -22,6 +22,28 @@ def test_runs_restart_with_each_sequence_and_seed(fit):
     assert fit.low_runs(p, fit.run_starts(rows), 0.5).tolist() == [1, 2, 3, 1, 0, 1]
 
 
+def test_a_copy_of_a_sequence_opens_its_own_run_and_is_held_out_with_its_original(fit):
+    """Frames pooled from several folders: a copy's frames start a run of their own (the lost rule's counts do
+    not carry over from the original), and a fold holds a sequence out together with its copies."""
+    rows = [{"sequence": "A", "seed": 0, "copy": 0}] * 2 + [{"sequence": "A", "seed": 0, "copy": 1}] * 2
+    assert fit.run_starts(rows).tolist() == [True, False, True, False]
+    rng = np.random.default_rng(3)
+    rows, X, ious = [], [], []
+    for copy in (0, 1):
+        for name in "ABC":
+            x = rng.normal(size=(40, 1))
+            rows += [{"sequence": name, "seed": 0, "copy": copy}] * 40
+            X.append(x)
+            ious.append(np.where(x[:, 0] > 0, 0.7, 0.0))
+    X, ious = np.vstack(X), np.concatenate(ious)
+    p = fit.held_out_presence(X, rows, ious, 1.0)
+    changed = ious.copy()
+    in_a = np.array([r["sequence"] == "A" for r in rows])
+    changed[in_a] = 0.7 - ious[in_a]      # relabel A and its copy: neither's own presence moves
+    q = fit.held_out_presence(X, rows, changed, 1.0)
+    assert np.allclose(q[in_a], p[in_a]) and not np.allclose(q[~in_a], p[~in_a])
+
+
 def test_the_lost_rule_balances_false_lost_and_missed_loss(fit):
     """A run of low presence where the box has left the target is lost; single dips on the target are not."""
     # the dips go lower than the loss, so no threshold alone tells them apart
