@@ -19,8 +19,8 @@ over just those sequences: whether a change helps the whole split or only a
 kind of sequence in it.
 
 Several dataset folders sweep the same sequences in each: *tune* and the
-copies of it that ``scripts/occlude_sequences.py``, ``stride_sequences.py``
-and ``zoom_sequences.py`` write, so a setting is judged on all of them in one
+copies of it that ``scripts/occlude_sequences.py``, ``stride_sequences.py``,
+``zoom_sequences.py`` and ``edge_sequences.py`` write, so a setting is judged on all of them in one
 run (``docs/evaluation.md``, "What *tune* rewards").  Each folder gets its
 tables, headed by its path, and a last table gives each configuration's mean
 over the seeds in every folder and over the folders::

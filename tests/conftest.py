@@ -26,6 +26,17 @@ def load_script(name: str):
     return module
 
 
+def read_rows(path: Path) -> np.ndarray:
+    """The comma-separated box rows of a ground-truth file the copy scripts write, ``(N, 4)``."""
+    return np.array([[float(v) for v in line.split(",")] for line in path.read_text().split()])
+
+
+def red_extent(image: np.ndarray) -> np.ndarray:
+    """0-based ``(x, y, w, h)`` of a synthetic target's pixels (red or yellow: high red channel, low blue)."""
+    ys, xs = np.nonzero((image[:, :, 2] > 180) & (image[:, :, 0] < 80))
+    return np.array([xs.min(), ys.min(), xs.max() - xs.min() + 1, ys.max() - ys.min() + 1], float)
+
+
 def textured_patch(rng: np.random.Generator, h: int, w: int) -> np.ndarray:
     """A colourful checker patch with grain, ``(h, w, 3) uint8``."""
     yy, xx = np.mgrid[0:h, 0:w]

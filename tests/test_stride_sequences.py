@@ -2,23 +2,18 @@
 
 from __future__ import annotations
 
-from pathlib import Path
 
 import cv2
 import numpy as np
 import pytest
 
-from conftest import REPO, load_script
+from conftest import REPO, load_script, read_rows
 from vidtrack.eval.synthetic import write_sequence
 
 
 @pytest.fixture(scope="module")
 def stride():
     return load_script("stride_sequences")
-
-
-def read_rows(path: Path) -> np.ndarray:
-    return np.array([[float(v) for v in line.split(",")] for line in path.read_text().split()])
 
 
 def test_the_kept_frames_are_the_original_frames_with_their_boxes(stride, tmp_path):

@@ -2,29 +2,18 @@
 
 from __future__ import annotations
 
-from pathlib import Path
 
 import cv2
 import numpy as np
 import pytest
 
-from conftest import REPO, load_script
+from conftest import load_script, read_rows, red_extent
 from vidtrack.eval.synthetic import write_sequence
 
 
 @pytest.fixture(scope="module")
 def zoom():
     return load_script("zoom_sequences")
-
-
-def red_extent(image: np.ndarray) -> np.ndarray:
-    """0-based ``(x, y, w, h)`` of the synthetic target's pixels (red or yellow: high red channel, low blue)."""
-    ys, xs = np.nonzero((image[:, :, 2] > 180) & (image[:, :, 0] < 80))
-    return np.array([xs.min(), ys.min(), xs.max() - xs.min() + 1, ys.max() - ys.min() + 1], float)
-
-
-def read_rows(path: Path) -> np.ndarray:
-    return np.array([[float(v) for v in line.split(",")] for line in path.read_text().split()])
 
 
 def test_zoom_factor_starts_at_one_and_reaches_one_minus_depth_half_a_period_later(zoom):
@@ -48,18 +37,3 @@ def test_the_written_box_follows_the_zoomed_target(zoom, tmp_path):
         box = truth[row] - [1, 1, 0, 0]
         assert np.all(np.abs(seen - box) <= 1.5), (row, seen, box)
 
-
-def test_rows_not_annotated_stay_zero(zoom, tmp_path):
-    source = tmp_path / "src"
-    write_sequence(source / "Sparse", frames=11, annotate_every=5)
-    assert zoom.main([str(source), str(tmp_path / "out"), "--depth", "0.3", "--period", "20"]) == 0
-    truth = read_rows(tmp_path / "out" / "Sparse" / "groundtruth_rect.txt")
-    assert np.all(truth[[1, 2, 3, 4, 6, 7, 8, 9]] == 0)
-    assert np.all(truth[[0, 5, 10], 2] > 0)
-
-
-def test_the_copy_is_refused_inside_the_repository(zoom, tmp_path):
-    write_sequence(tmp_path / "src" / "Still", frames=3)
-    with pytest.raises(SystemExit, match="outside the repository"):
-        zoom.main([str(tmp_path / "src"), str(REPO / "zoom-copy")])
-    assert not (REPO / "zoom-copy").exists()
