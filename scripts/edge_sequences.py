@@ -1,4 +1,4 @@
-"""Write a copy of benchmark sequences in which the target runs along the frame's edge.
+"""Write a copy of benchmark sequences in which the target stays at the frame's side.
 
 Trackers that have lost their target often come to rest against the
 frame's edge, where benchmark targets seldom are, so a confidence fitted on
@@ -6,10 +6,10 @@ benchmark video learns that a box at the edge is a lost one.  A target that
 really moves along the edge (a car at the side of a road camera, a person
 walking past the frame's border) is then reported lost while it is tracked.
 This copy makes that case: each frame is cropped to a window ``fraction``
-of the frame's sides whose left (or right) side follows the target, so
-that the target's box starts ``gap`` box widths from it and stays there,
-partly out of view when ``gap`` is negative, as a camera panning with the
-target would see it.  The side is the one the target's first box is
+of the frame's width (its full height) whose left (or right) side follows
+the target, so that the target's box starts ``gap`` box widths from it and
+stays there, partly out of view when ``gap`` is negative, as a camera
+panning with the target would see it.  The side is the one the target's first box is
 nearer; where the window would leave the frame it stops at the frame's
 side and the target moves away from the window's edge.
 
