@@ -9,9 +9,9 @@ This copy makes that case: each frame is cropped to a window ``fraction``
 of the frame's width (its full height) whose left (or right) side follows
 the target, so that the target's box starts ``gap`` box widths from it and
 stays there, partly out of view when ``gap`` is negative, as a camera
-panning with the target would see it.  The side is the one the target's first box is
-nearer; where the window would leave the frame it stops at the frame's
-side and the target moves away from the window's edge.
+panning with the target would see it.  The side is the one the target's
+first box is nearer; where the window would leave the frame it stops at the
+frame's side and the target moves away from the window's edge.
 
 The target's box on a frame that is not annotated (the MIL layout
 annotates every fifth) is interpolated linearly between its annotated

@@ -486,11 +486,16 @@ def main(argv=None) -> int:
     return 0
 
 
+def copy_names(args) -> list[str]:
+    """The names of the dataset folders after the first: the copies whose frames are pooled with it."""
+    return [Path(d).resolve().name for d in args.dataset[1:]]
+
+
 def fit_pass(name, folders, seeds, args, *, calibrated: bool):
     """One pass: collect the frames (or read them from the cache), fit, print the tune figures."""
     cache = None
     if args.cache is not None:
-        copies = "".join(f"-{Path(d).resolve().name}" for d in args.dataset[1:])
+        copies = "".join(f"-{copy}" for copy in copy_names(args))
         cache = args.cache / f"{name}-{'-'.join(map(str, seeds))}{copies}{'-calibrated' if calibrated else ''}.json"
     if cache is not None and cache.is_file():
         saved = json.loads(cache.read_text(encoding="utf-8"))
@@ -562,7 +567,7 @@ def document(name: str, cal: Calibration, rows, ious, args, seeds, passes: int) 
     """The JSON file's content: the calibration and what it was fitted on."""
     data = cal.to_dict()
     data["fitted_on"] = {"sequences": args.sequences, "seeds": seeds, "frames": len(rows), "passes": passes,
-                         **({"copies": [Path(d).resolve().name for d in args.dataset[1:]]} if len(args.dataset) > 1 else {}),
+                         **({"copies": copy_names(args)} if len(args.dataset) > 1 else {}),
                          "positive_rate": round(float(np.mean(ious > 0.5)), 4),
                          "threshold_rule": THRESHOLD_RULES[TRACKERS[name][2]]}
     return data

@@ -21,9 +21,9 @@ kind of sequence in it.
 Several dataset folders sweep the same sequences in each: *tune* and the
 copies of it that ``scripts/occlude_sequences.py``, ``stride_sequences.py``,
 ``zoom_sequences.py`` and ``edge_sequences.py`` write, so a setting is judged
-on all of them in one run (``docs/evaluation.md``, "What *tune* rewards").  Each folder gets its
-tables, headed by its path, and a last table gives each configuration's mean
-over the seeds in every folder and over the folders::
+on all of them in one run (``docs/evaluation.md``, "What *tune* rewards").
+Each folder gets its tables, headed by its path, and a last table gives each
+configuration's mean over the seeds in every folder and over the folders::
 
     python scripts/tune_sweep.py ../shared/data/sequences OCCLUDED ZOOMED --filter mil \
         --config '' --config 'kalman.r_size=0.1'

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-
 import cv2
 import numpy as np
 import pytest
@@ -53,4 +52,3 @@ def test_the_copy_keeps_the_moving_target_at_the_window_side(edge, tmp_path):
         np.testing.assert_allclose(box[[0, 2]], [0, 24], atol=1.0)   # a fifth of the target out of view
         seen = red_extent(image)
         assert np.all(np.abs(seen - box) <= 1.5), (row, seen, box)
-

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-
 import cv2
 import numpy as np
 import pytest
@@ -36,4 +35,3 @@ def test_the_written_box_follows_the_zoomed_target(zoom, tmp_path):
         seen = red_extent(cv2.imread(str(images[row])))
         box = truth[row] - [1, 1, 0, 0]
         assert np.all(np.abs(seen - box) <= 1.5), (row, seen, box)
-
