@@ -95,6 +95,30 @@ def test_the_map_reaches_a_measured_box_far_from_the_prior():
     assert verification_cues({"verification": vmap}, box.center)["verify"] == pytest.approx(on_target, abs=0.1)
 
 
+@pytest.mark.parametrize("name", ["nh", "pf", "bayes"])
+def test_the_score_map_trackers_verify_gap_sees_the_target_two_box_sizes_away(name):
+    """A box resting 1.7 box sizes beside the target: the score-map trackers' map reaches the target, so
+    ``verify_gap`` says a better match lies nearby; a map reaching one box size does not see it."""
+    frames, boxes = synthetic_sequence(n=20, size=(200, 150))
+    measurer = build_tracker(name, seed=0).measurer
+    measurer.initialize(frames[0], boxes[0])
+    box = boxes[15]
+    checked = 0
+    for dx, dy in ((1.7, 0.0), (-1.7, 0.0), (0.0, 1.7), (0.0, -1.7)):
+        beside = Box.from_center(box.center[0] + dx * box.w, box.center[1] + dy * box.h, *box.size)
+        if beside.x < 0 or beside.y < 0 or beside.x + beside.w > 200 or beside.y + beside.h > 150:
+            continue
+        checked += 1
+        prior = Estimate(beside, None, 1.0, TRACKING)
+        wide = measurer.measure(frames[15], prior).stages
+        narrow = VerifiedMeasurer(measurer.inner, margin=1.0)
+        narrow.verifier = measurer.verifier
+        near = narrow.measure(frames[15], prior).stages
+        assert verification_cues(wide, beside.center)["verify_gap"] > 0.4
+        assert verification_cues(near, beside.center)["verify_gap"] < verification_cues(wide, beside.center)["verify_gap"] - 0.2
+    assert checked >= 1
+
+
 def test_map_value_is_bilinear_and_clamped_to_the_map():
     smap = ScoreMap(scores=np.array([[0.0, 1.0], [2.0, 3.0]]), origin=(10.0, 20.0), step=2.0, box_size=(4.0, 6.0))
     assert map_value(smap.scores, smap, (13.0, 24.0)) == pytest.approx(1.5)   # cell (0.5, 0.5)

@@ -30,6 +30,9 @@ DETECTOR_DOC = "the score map: cf (correlation filter), ncc (grey template) or f
 RESEED_DOC = ("while lost, the tracker restarts at the map's peak when the map's quality reaches this and its "
               "own box scores under half the peak (none: never)")
 CF_DOC = "the correlation-filter detector (detector cf): its filter, scale search, learning and re-detection"
+#: Reach of the appearance verification map, in box sizes around the prior: the calibrated confidence's
+#: ``verify_gap`` sees a better match of the first frame's target up to this far from the box
+VERIFY_MARGIN = 2.0
 
 
 @dataclass(frozen=True)
@@ -80,7 +83,8 @@ def _tracker(config, box_filter) -> Tracker:
     # the box size follows the detector's scale estimate (the cf detector searches scales); the
     # verification map (first-frame appearance) is a cue of the calibrated confidence only
     options = {"cf": config.cf} if config.detector == "cf" else {}
-    return Tracker(VerifiedMeasurer(make_detector(config.detector, **options)), MeasuredSizeFilter(box_filter))
+    measurer = VerifiedMeasurer(make_detector(config.detector, **options), margin=VERIFY_MARGIN)
+    return Tracker(measurer, MeasuredSizeFilter(box_filter))
 
 
 def build_nh(config: NormalHedgeConfig, seed=None) -> Tracker:
