@@ -89,15 +89,16 @@ OUT = Path(__file__).resolve().parents[1] / "vidtrack" / "filters" / "calibratio
 #: selection takes the inlier coverage, the verification gap and the running colour likelihood, 0.940;
 #: ``--compare`` gives, on the same frames, the quality, PSR and inlier coverage 0.890, all of
 #: :data:`~vidtrack.filters.mil.CUES` 0.915, the five with the border gap 0.930).  The
-#: score-map trackers and cbt, likewise, on the uncalibrated tracker's frames.  nh: the running colour
-#: likelihood, the verification gap, the map's quality and the box's gap to the frame's border (0.935; without
-#: the border gap 0.924; forward selection takes the actions' spread instead of the quality, 0.934; the
-#: uncalibrated confidence 0.809, all of :data:`~vidtrack.filters.score_trackers.CUES` 0.873); pf: the
-#: running colour likelihood, the verification gap, the particles' spread and the border gap (0.967, the
-#: set forward selection takes; without the border gap 0.946; the uncalibrated confidence 0.720, all 0.914);
-#: bayes: the running verification and colour likelihood, the spread and the border gap (0.960, the set
-#: forward selection takes with the map's score at the estimate added third; without the border gap 0.946;
-#: the uncalibrated confidence 0.803, all 0.936); cbt: the running colour likelihood, the running
+#: score-map trackers and cbt, likewise, on the uncalibrated tracker's frames (the score-map trackers' figures
+#: with their verification map two box sizes wide).  nh: the running colour likelihood, the verification gap,
+#: the map's quality and the box's gap to the frame's border (0.938; without the border gap 0.931; forward
+#: selection takes the actions' spread instead of the quality and stops there, 0.936; the uncalibrated
+#: confidence 0.811, all of :data:`~vidtrack.filters.score_trackers.CUES` 0.879); pf: the running colour
+#: likelihood, the verification gap, the particles' spread and the border gap (0.967, the set forward
+#: selection takes; without the border gap 0.951; the uncalibrated confidence 0.720, all 0.930); bayes: the
+#: running verification and colour likelihood, the spread and the border gap (0.963, chosen with the map one
+#: box size wide; forward selection now takes the verification gap instead of the running verification,
+#: 0.965; without the border gap 0.947; the uncalibrated confidence 0.803, all 0.943); cbt: the running colour likelihood, the running
 #: verification and the mode mass (0.923; with the border gap 0.925, under the selection's step; the
 #: uncalibrated confidence 0.654, all of :data:`~vidtrack.filters.cbt.CUES` 0.898).
 MIL_CUES = tuple(c for c in mil_filter.CUES
