@@ -31,6 +31,20 @@ def read_rows(path: Path) -> np.ndarray:
     return np.array([[float(v) for v in line.split(",")] for line in path.read_text().split()])
 
 
+def copied_sequence(script, tmp_path: Path, name: str, args: list[str],
+                    **sequence) -> tuple[np.ndarray, list[Path]]:
+    """Write the synthetic sequence ``name`` (``sequence``: :func:`~vidtrack.eval.synthetic.write_sequence`'s
+    options), copy it with a copy script's ``main`` and ``args``, and return the copy's ground-truth rows and
+    frame files."""
+    from vidtrack.eval.synthetic import write_sequence
+
+    source = tmp_path / "src"
+    write_sequence(source / name, **sequence)
+    assert script.main([str(source), str(tmp_path / "out"), *args]) == 0
+    out = tmp_path / "out" / name
+    return read_rows(out / "groundtruth_rect.txt"), sorted((out / "img").iterdir())
+
+
 def red_extent(image: np.ndarray) -> np.ndarray:
     """0-based ``(x, y, w, h)`` of a synthetic target's pixels (red or yellow: high red channel, low blue)."""
     ys, xs = np.nonzero((image[:, :, 2] > 180) & (image[:, :, 0] < 80))

@@ -6,8 +6,7 @@ import cv2
 import numpy as np
 import pytest
 
-from conftest import load_script, read_rows, red_extent
-from vidtrack.eval.synthetic import write_sequence
+from conftest import copied_sequence, load_script, red_extent
 
 
 @pytest.fixture(scope="module")
@@ -38,12 +37,8 @@ def test_a_box_across_the_window_side_is_clipped(edge):
 
 
 def test_the_copy_keeps_the_moving_target_at_the_window_side(edge, tmp_path):
-    source = tmp_path / "src"
-    write_sequence(source / "Moving", frames=21, size=(200, 100), box=(20, 40, 30, 20), velocity=(3.0, 0.5))
-    assert edge.main([str(source), str(tmp_path / "out"), "--fraction", "0.5", "--gap", "-0.2"]) == 0
-    out = tmp_path / "out" / "Moving"
-    truth = read_rows(out / "groundtruth_rect.txt")
-    images = sorted((out / "img").iterdir())
+    truth, images = copied_sequence(edge, tmp_path, "Moving", ["--fraction", "0.5", "--gap", "-0.2"], frames=21,
+                                    size=(200, 100), box=(20, 40, 30, 20), velocity=(3.0, 0.5))
     assert len(images) == len(truth) == 21
     for row in (0, 10, 20):
         image = cv2.imread(str(images[row]))

@@ -6,8 +6,7 @@ import cv2
 import numpy as np
 import pytest
 
-from conftest import load_script, read_rows, red_extent
-from vidtrack.eval.synthetic import write_sequence
+from conftest import copied_sequence, load_script, red_extent
 
 
 @pytest.fixture(scope="module")
@@ -22,12 +21,8 @@ def test_zoom_factor_starts_at_one_and_reaches_one_minus_depth_half_a_period_lat
 
 
 def test_the_written_box_follows_the_zoomed_target(zoom, tmp_path):
-    source = tmp_path / "src"
-    write_sequence(source / "Still", frames=21, size=(160, 120), box=(90, 60, 40, 30), velocity=(0.0, 0.0))
-    assert zoom.main([str(source), str(tmp_path / "out"), "--depth", "0.5", "--period", "40"]) == 0
-    out = tmp_path / "out" / "Still"
-    truth = read_rows(out / "groundtruth_rect.txt")
-    images = sorted((out / "img").iterdir())
+    truth, images = copied_sequence(zoom, tmp_path, "Still", ["--depth", "0.5", "--period", "40"], frames=21,
+                                    size=(160, 120), box=(90, 60, 40, 30), velocity=(0.0, 0.0))
     assert len(images) == len(truth) == 21
     np.testing.assert_allclose(truth[0], [91, 61, 40, 30])             # z = 1: unchanged (1-based)
     np.testing.assert_allclose(truth[20, 2:], [20, 15])                 # z = 0.5 half a period in
