@@ -9,10 +9,19 @@ appearance verification and, through ``lost``, where it searches) over the *tune
 (the filter's ``scalars``, see :mod:`vidtrack.filters.calibration`) and
 whether its box overlaps the ground truth by more than 0.5 (annotated frames,
 the init frame left out), fits scikit-learn's ``LogisticRegression`` on the
-standardised cues, and writes ``vidtrack/filters/calibration/<tracker>.json``::
+standardised cues (``mil``, ``bayes``, ``cbt``) or its monotone
+``HistGradientBoostingClassifier`` on the clipped cues (``nh``, ``pf``:
+:data:`TRACKERS`, :data:`CUE_DIRECTION`, :data:`TREES`), and writes
+``vidtrack/filters/calibration/<tracker>.json``.  ``nh`` and ``pf`` are fitted
+on *tune* and three copies of it, in which bars of a random colour or of the
+target's cross the target, and in which the target keeps to the frame's side::
 
     python scripts/fit_confidence.py ../shared/data/sequences --trackers mil --seeds 0,1 --passes 2
-    python scripts/fit_confidence.py ../shared/data/sequences --trackers nh,pf,bayes,cbt --seeds 0 --passes 2
+    python scripts/fit_confidence.py ../shared/data/sequences --trackers bayes,cbt --seeds 0 --passes 2
+    python scripts/occlude_sequences.py ../shared/data/sequences OCC1 --sequences <tune>
+    python scripts/occlude_sequences.py ../shared/data/sequences OCC3 --sequences <tune> --bar-colour target
+    python scripts/edge_sequences.py ../shared/data/sequences EDGE --sequences <tune>
+    python scripts/fit_confidence.py ../shared/data/sequences OCC1 OCC3 EDGE --trackers nh,pf --seeds 0 --passes 2
 
 ``--passes 2`` refits on the frames of the tracker run with the first fit
 (written to the package, where the tracker reads it, so not with another ``--out``),
@@ -45,9 +54,12 @@ the targets they are held to, on frames the fit has not seen.  The
 score-map trackers' ``lost`` is read from the confidence itself: ``P(IoU >
 0.5)`` below ``t`` for ``k`` frames in a row, or a frame whose update was
 skipped (its ``unmeasured`` scalar), with ``(t, k)`` chosen in the same way
-on the held-out confidence; ``cbt``'s likewise, a frame it does not measure
-(its uncalibrated confidence below its ``lost_below``) being its skipped
-update.  The script prints, per tracker, the frames used, the coefficients,
+on the held-out confidence (trees fitted on the other sequences, for a tree
+model); ``cbt``'s likewise, a frame it does not measure (its uncalibrated
+confidence below its ``lost_below``) being its skipped update.  With copies
+pooled, the rule is chosen on the frames of the sequences themselves
+(:func:`own_rows`): the copies teach the confidence what their failures look
+like, but fail far more often than real video.  The script prints, per tracker, the frames used, the coefficients,
 the tune ROC AUC, expected calibration error, false lost and missed loss of
 the fitted confidence (with the status as the filter reports it), and the ROC AUC with each sequence held out
 (:func:`held_out_auc`); ``--select`` also prints the forward selection of
@@ -62,6 +74,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import re
 import sys
 from dataclasses import replace
 from pathlib import Path
@@ -76,7 +89,7 @@ from vidtrack.eval.datasets import annotated_rows, load_dataset  # noqa: E402
 from vidtrack.filters import cbt as cbt_filter  # noqa: E402
 from vidtrack.filters import mil as mil_filter  # noqa: E402
 from vidtrack.filters import score_trackers  # noqa: E402
-from vidtrack.filters.calibration import Calibration, LostRule, load_calibration  # noqa: E402
+from vidtrack.filters.calibration import Calibration, LostRule, MonotoneTrees, load_calibration  # noqa: E402
 from vidtrack.recipes import build_tracker  # noqa: E402
 from vidtrack.sources import ImageFolderSource  # noqa: E402
 
@@ -108,14 +121,29 @@ PF_CUES = tuple(c for c in score_trackers.CUES if c[0] in ("colour_mean", "verif
 BAYES_CUES = tuple(c for c in score_trackers.CUES if c[0] in ("verify_mean", "colour_mean", "spread", "border_gap"))
 CBT_CUES = tuple(c for c in cbt_filter.CUES if c[0] in ("colour_mean", "verify_mean", "mode_mass"))
 
-#: tracker -> (its cues, the setting that switches its calibration off, the rule of its lost threshold)
+#: tracker -> (its cues, the setting that switches its calibration off, the rule of its lost threshold, its model:
+#: ``"logistic"`` or monotone ``"trees"``).  Fitted on *tune* and its copies, ``nh``'s and ``pf``'s trees rank the
+#: frames of a sequence held out of the fit better than their logistic on *tune* alone, on every folder; ``bayes``'s
+#: trees cost it accuracy on copies they were not fitted on, and ``mil``'s logistic ranks its frames better than
+#: trees on the same cues (docs/trackers.md).
 TRACKERS = {
-    "mil": (MIL_CUES, {}, "balance"),   # run as packaged: its lost rule steers its search (fit with --passes 2)
-    "nh": (NH_CUES, {"confidence": None}, "confidence"),   # its lost rule steers its detector (fit with --passes 2)
-    "pf": (PF_CUES, {"confidence": None}, "confidence"),
-    "bayes": (BAYES_CUES, {"confidence": None}, "confidence"),
-    "cbt": (CBT_CUES, {"confidence": None}, "confidence"),
+    "mil": (MIL_CUES, {}, "balance", "logistic"),   # run as packaged: its lost rule steers its search (--passes 2)
+    "nh": (NH_CUES, {"confidence": None}, "confidence", "trees"),   # its lost rule steers its detector (--passes 2)
+    "pf": (PF_CUES, {"confidence": None}, "confidence", "trees"),
+    "bayes": (BAYES_CUES, {"confidence": None}, "confidence", "logistic"),
+    "cbt": (CBT_CUES, {"confidence": None}, "confidence", "logistic"),
 }
+#: The direction in which ``P(IoU > 0.5)`` moves with each cue a tree model reads (its monotone constraints).
+CUE_DIRECTION = {
+    "quality": 1,       # the detector's peak stands out of its map: it sees a target
+    "verify_gap": -1,   # the first frame's target matches better elsewhere in the region: the box is beside it
+    "verify_mean": 1,   # the box looks like the first frame's target
+    "colour_mean": 1,   # the box holds the first frame's target colours
+    "border_gap": 1,    # a box that has lost its target comes to rest against the frame's edge
+    "spread": -1,       # the posterior is spread over several places
+}
+#: The gradient boosting of the tree models: 100 trees of depth 3, each leaf at least 100 frames
+TREES = {"max_iter": 100, "learning_rate": 0.05, "max_depth": 3, "min_samples_leaf": 100}
 #: The cues of the presence model ``P(IoU > 0)`` that decides ``lost`` (rule ``"balance"``), judged on tune by
 #: the cost of the lost rule on held-out frames, which :func:`select_presence_cues` (``--select``) lowers by
 #: forward selection.  mil: the presence flag, the box's gap to the frame's border, the inlier coverage and the
@@ -148,7 +176,7 @@ def collect(name: str, folders, seeds, calibrated: bool = False) -> tuple[list[d
     ``copy`` (a sequence and its copies keep one ``sequence`` name, so a fold holds them out together).
     ``calibrated``: run the tracker with its packaged calibration (else switched off).
     """
-    _, off, _ = TRACKERS[name]
+    off = TRACKERS[name][1]
     off = {} if calibrated else off
     rows, ious = [], []
     for seed in seeds:
@@ -178,6 +206,22 @@ def run_starts(rows: list[dict]) -> np.ndarray:
     return np.array([k == 0 or keys[k] != keys[k - 1] for k in range(len(keys))], bool)
 
 
+def own_rows(rows: list[dict]) -> np.ndarray:
+    """``(N,)`` bool: the row is a frame of the sequences themselves (the first dataset folder), not of a copy.
+
+    The copies' frames teach the confidence what their failures look like; the lost rule is chosen on these
+    alone, so that it trades false lost against missed loss at the rate the sequences themselves fail.
+    """
+    return np.array([r.get("copy", 0) == 0 for r in rows], bool)
+
+
+def chosen_lost_rule(held: np.ndarray, rows: list[dict], ious: np.ndarray) -> tuple[float, int, float, float]:
+    """:func:`choose_lost_rule` on the held-out ``held`` of the sequences' own rows (:func:`own_rows`)."""
+    own = own_rows(rows)
+    mine = [r for r, keep in zip(rows, own) if keep]
+    return choose_lost_rule(held[own], ious[own], run_starts(mine), unmeasured_rows(mine))
+
+
 def unmeasured_rows(rows: list[dict]) -> np.ndarray:
     """``(N,)`` bool: the row's ``unmeasured`` scalar is set, so it is lost at once whatever its probability.
 
@@ -197,8 +241,12 @@ def low_runs(p: np.ndarray, starts: np.ndarray, t: float) -> np.ndarray:
 
 
 def held_out_presence(X: np.ndarray, rows: list[dict], ious: np.ndarray, C: float,
-                      above: float = 0.0) -> np.ndarray:
-    """``P(IoU > above)`` of each row from the logistic fit on the other sequences' rows (their own standardisation)."""
+                      above: float = 0.0, directions=None) -> np.ndarray:
+    """``P(IoU > above)`` of each row from the fit on the other sequences' rows.
+
+    The logistic fit (on their own standardisation), or with ``directions`` (one +1 or -1 per column of
+    ``X``) the monotone trees (:func:`trees_model`).
+    """
     from sklearn.linear_model import LogisticRegression
 
     y = ious > above
@@ -206,6 +254,9 @@ def held_out_presence(X: np.ndarray, rows: list[dict], ious: np.ndarray, C: floa
     p = np.zeros(len(rows))
     for name in np.unique(sequences):
         test = sequences == name
+        if directions is not None:
+            p[test] = trees_model(directions, X[~test], y[~test]).predict_proba(X[test])[:, 1]
+            continue
         mean, scale = X[~test].mean(axis=0), X[~test].std(axis=0)
         scale = np.where(scale > 1e-9, scale, 1.0)
         model = LogisticRegression(C=C, max_iter=1000).fit((X[~test] - mean) / scale, y[~test])
@@ -269,8 +320,8 @@ def fit(name: str, rows: list[dict], ious: np.ndarray, C: float,
 
     ``held_presence``: as in :func:`fit_cues`.
     """
-    cues, _, rule = TRACKERS[name]
-    return fit_cues(cues, rule, rows, ious, C, PRESENCE_CUES.get(name), held_presence)
+    cues, _, rule, model = TRACKERS[name]
+    return fit_cues(cues, rule, rows, ious, C, PRESENCE_CUES.get(name), held_presence, model)
 
 
 def cue_matrix(cues, rows: list[dict]) -> np.ndarray:
@@ -309,6 +360,25 @@ def held_out_auc(cues, rows: list[dict], ious: np.ndarray, C: float = 1.0, X: np
         model = LogisticRegression(C=C, max_iter=1000).fit((X[~test] - mean) / scale, y[~test])
         direction = model.coef_[0] / scale * g_scale
         z[test] = ((X[test] - g_mean) / g_scale) @ (direction / max(float(np.linalg.norm(direction)), 1e-12))
+    return conf_metrics.roc_auc(z, y)
+
+
+def held_out_trees_auc(cues, rows: list[dict], ious: np.ndarray) -> float:
+    """Leave-one-sequence-out ROC AUC of the monotone trees on ``cues``, like :func:`held_out_auc`.
+
+    Each sequence's frames are scored by the trees fitted on the other sequences, without the fit's
+    baseline (the other sequences' rate of good frames, as the logistic's constant in :func:`held_out_auc`).
+    """
+    X, y = cue_matrix(cues, rows), ious > 0.5
+    directions = cue_directions(cues)
+    sequences = np.array([r.get("sequence", "") for r in rows])
+    z = np.zeros(len(rows))
+    for name in np.unique(sequences):
+        test = sequences == name
+        if len(np.unique(y[~test])) < 2:
+            return float("nan")
+        model = trees_model(directions, X[~test], y[~test])
+        z[test] = model.decision_function(X[test]) - float(np.ravel(model._baseline_prediction)[0])
     return conf_metrics.roc_auc(z, y)
 
 
@@ -407,8 +477,51 @@ def logistic_fit(cues, rows: list[dict], labels: np.ndarray, C: float, lost_belo
                        fill=fill, lower=lower, upper=upper, lost_below=lost_below)
 
 
+def cue_directions(cues) -> list[int]:
+    """The monotone direction of each of ``cues`` (:data:`CUE_DIRECTION`)."""
+    unknown = [c[0] for c in cues if c[0] not in CUE_DIRECTION]
+    if unknown:
+        raise SystemExit(f"fit_confidence: no monotone direction for the cue {unknown[0]!r} (CUE_DIRECTION)")
+    return [CUE_DIRECTION[c[0]] for c in cues]
+
+
+def trees_model(directions, X: np.ndarray, labels: np.ndarray):
+    """scikit-learn's gradient-boosted trees (:data:`TREES`) of ``labels`` on ``X``, monotone in ``directions``."""
+    from sklearn.ensemble import HistGradientBoostingClassifier
+
+    model = HistGradientBoostingClassifier(**TREES, monotonic_cst=list(directions), early_stopping=False,
+                                           random_state=0)
+    return model.fit(X, labels)
+
+
+def exported_trees(model) -> MonotoneTrees:
+    """The trees of a fitted ``HistGradientBoostingClassifier`` as a :class:`MonotoneTrees` (same log-odds)."""
+    feature, threshold, left, right, value, roots = [], [], [], [], [], []
+    for (predictor,) in model._predictors:
+        base = len(feature)
+        roots.append(base)
+        for node in predictor.nodes:
+            leaf = bool(node["is_leaf"])
+            feature.append(-1 if leaf else int(node["feature_idx"]))
+            threshold.append(0.0 if leaf else float(node["num_threshold"]))
+            left.append(-1 if leaf else base + int(node["left"]))
+            right.append(-1 if leaf else base + int(node["right"]))
+            value.append(float(node["value"]) if leaf else 0.0)
+    return MonotoneTrees(baseline=float(np.ravel(model._baseline_prediction)[0]), feature=np.array(feature),
+                         threshold=np.array(threshold), left=np.array(left), right=np.array(right),
+                         value=np.array(value), roots=np.array(roots))
+
+
+def trees_fit(cues, rows: list[dict], labels: np.ndarray, lost_below: float = 0.5) -> Calibration:
+    """Monotone gradient-boosted trees of the bool ``labels`` on the clipped ``cues`` of ``rows``."""
+    fill, lower, upper = (np.array([c[i] for c in cues], float) for i in (1, 2, 3))
+    model = trees_model(cue_directions(cues), cue_matrix(cues, rows), labels)
+    return Calibration(cues=tuple(c[0] for c in cues), fill=fill, lower=lower, upper=upper, lost_below=lost_below,
+                       trees=exported_trees(model))
+
+
 def fit_cues(cues, rule: str, rows: list[dict], ious: np.ndarray, C: float, presence_cues=None,
-             held_presence: np.ndarray | None = None) -> Calibration:
+             held_presence: np.ndarray | None = None, model: str = "logistic") -> Calibration:
     """Logistic regression of ``IoU > 0.5`` on the standardised, clipped ``cues``; ``rule`` sets the threshold.
 
     ``"balance"``: the status from a presence model, ``IoU > 0`` on ``presence_cues``, lost below a
@@ -416,19 +529,20 @@ def fit_cues(cues, rule: str, rows: list[dict], ious: np.ndarray, C: float, pres
     the rows' :func:`held_out_presence` on those cues, when already computed).  ``"confidence"``: no
     presence model; lost when ``P(IoU > 0.5)`` itself is below a threshold for some frames in a row, chosen
     likewise on its held-out values (``held_presence``: the rows' ``P(IoU > 0.5)`` from the fits on the
-    other sequences).
+    other sequences).  ``model``: ``"logistic"``, or ``"trees"`` (:func:`trees_fit`; rule ``"confidence"`` only).
     """
-    cal = logistic_fit(cues, rows, ious > 0.5, C)
+    trees = model == "trees"
+    cal = trees_fit(cues, rows, ious > 0.5) if trees else logistic_fit(cues, rows, ious > 0.5, C)
     if rule == "confidence":
-        held = held_presence if held_presence is not None else held_out_presence(cue_matrix(cues, rows), rows,
-                                                                                   ious, C, above=0.5)
-        threshold, lost_after, _, _ = choose_lost_rule(held, ious, run_starts(rows), unmeasured_rows(rows))
+        held = held_presence if held_presence is not None else held_out_presence(
+            cue_matrix(cues, rows), rows, ious, C, above=0.5, directions=cue_directions(cues) if trees else None)
+        threshold, lost_after, _, _ = chosen_lost_rule(held, rows, ious)
         return replace(cal, lost_below=threshold, lost_after=lost_after)
-    if rule != "balance":
-        raise ValueError(f"unknown threshold rule {rule!r}")
+    if rule != "balance" or trees:
+        raise ValueError(f"no threshold rule {rule!r} for a {model} model")
     if held_presence is None:
         held_presence = held_out_presence(cue_matrix(presence_cues, rows), rows, ious, C)
-    threshold, lost_after, _, _ = choose_lost_rule(held_presence, ious, run_starts(rows), unmeasured_rows(rows))
+    threshold, lost_after, _, _ = chosen_lost_rule(held_presence, rows, ious)
     return replace(cal, lost_below=threshold, lost_after=lost_after,
                    presence=logistic_fit(presence_cues, rows, ious > 0, C, threshold))
 
@@ -481,10 +595,15 @@ def main(argv=None) -> int:
         for run in range(args.passes):
             cal, rows, ious = fit_pass(name, folders, seeds, args, calibrated=run > 0)
             args.out.mkdir(parents=True, exist_ok=True)
-            (args.out / f"{name}.json").write_text(json.dumps(document(name, cal, rows, ious, args, seeds, run + 1),
-                                                              indent=1) + "\n", encoding="utf-8")
+            (args.out / f"{name}.json").write_text(calibration_json(document(name, cal, rows, ious, args, seeds, run + 1)),
+                                                   encoding="utf-8")
             load_calibration.cache_clear()
     return 0
+
+
+def cal_model(name: str) -> str:
+    """The model kind of ``name``'s calibration: ``"logistic"`` or ``"trees"``."""
+    return TRACKERS[name][3]
 
 
 def copy_names(args) -> list[str]:
@@ -515,23 +634,32 @@ def fit_pass(name, folders, seeds, args, *, calibrated: bool):
     if TRACKERS[name][2] == "balance":
         held = held_out_presence(cue_matrix(PRESENCE_CUES[name], rows), rows, ious, args.C)
     elif TRACKERS[name][2] == "confidence":
-        held = held_out_presence(cue_matrix(TRACKERS[name][0], rows), rows, ious, args.C, above=0.5)
+        cues = TRACKERS[name][0]
+        held = held_out_presence(cue_matrix(cues, rows), rows, ious, args.C, above=0.5,
+                                 directions=cue_directions(cues) if cal_model(name) == "trees" else None)
     cal = fit(name, rows, ious, args.C, held)
+    own = own_rows(rows)   # the figures below are the sequences' own (the copies only join the fit)
     p = np.array([cal.probability(r) for r in rows])
     status = lost_status(cal, rows)
-    m = conf_metrics.confidence_metrics(ious, p, status)
-    weights = ", ".join(f"{c} {w:+.2f}" for c, w in zip(cal.cues, cal.coef))
+    m = conf_metrics.confidence_metrics(ious[own], p[own], status[own])
+    if cal.trees is not None:
+        weights = (f"{len(cal.trees.roots)} trees monotone in "
+                   + ", ".join(f"{c} {'+' if d > 0 else '-'}" for c, d in zip(cal.cues, cue_directions(TRACKERS[name][0]))))
+    else:
+        weights = ", ".join(f"{c} {w:+.2f}" for c, w in zip(cal.cues, cal.coef))
     lost = f"lost below {cal.lost_below:.3f}" + (f" for {cal.lost_after} frame(s)" if cal.lost_after > 1 else "")
     if cal.presence is not None:
         presence = ", ".join(f"{c} {w:+.2f}" for c, w in zip(cal.presence.cues, cal.presence.coef))
         lost = (f"presence: {presence}; intercept {cal.presence.intercept:+.2f}; lost below {cal.lost_below:.3f} "
                 f"for {cal.lost_after} frame(s)")
     print(f"{name}{' (pass on the calibrated tracker)' if calibrated else ''}: {len(rows)} frames; {weights}; "
-          f"intercept {cal.intercept:+.2f}; {lost}")
+          + ("" if cal.trees is not None else f"intercept {cal.intercept:+.2f}; ") + lost)
     print(f"  tune: ROC AUC {m['confidence_auc']:.3f}, ECE {m['ece']:.3f}, false lost {m['false_lost']:.3f}, "
           f"missed loss {m['missed_loss']:.3f}, lost rate {m['lost_rate']:.3f}", flush=True)
     if all("sequence" in r for r in rows):
-        print(f"  tune, each sequence held out: ROC AUC {held_out_auc(TRACKERS[name][0], rows, ious, args.C):.3f}")
+        auc = (held_out_trees_auc(TRACKERS[name][0], rows, ious) if cal.trees is not None
+               else held_out_auc(TRACKERS[name][0], rows, ious, args.C))
+        print(f"  tune{'' if own.all() else ' and its copies'}, each sequence held out: ROC AUC {auc:.3f}")
     if args.select and name in SELECT_FROM:
         chosen, lines = select_cues(SELECT_FROM[name], rows, ious, args.C)
         print("\n".join(lines) + f"\n  selected: {', '.join(c[0] for c in chosen)}", flush=True)
@@ -544,24 +672,33 @@ def fit_pass(name, folders, seeds, args, *, calibrated: bool):
               + "\n".join(compare_cue_sets(SELECT_FROM[name], args.compare, rows, ious, args.C,
                                            presence=name in PRESENCE_CUES)), flush=True)
     if held is not None:   # the lost rule on frames the fit has not seen
-        starts, forced = run_starts(rows), unmeasured_rows(rows)
+        mine = [r for r, keep in zip(rows, own) if keep]
+        held, ious_own = held[own], ious[own]
+        starts, forced = run_starts(mine), unmeasured_rows(mine)
         status = np.where((low_runs(held, starts, cal.lost_below) >= cal.lost_after) | forced, conf_metrics.LOST,
                           conf_metrics.TRACKING)
-        print(f"  tune, each sequence held out: false lost {conf_metrics.false_lost(ious, status):.3f}, "
-              f"missed loss {conf_metrics.missed_loss(ious, status):.3f}", flush=True)
+        print(f"  tune, each sequence held out: false lost {conf_metrics.false_lost(ious_own, status):.3f}, "
+              f"missed loss {conf_metrics.missed_loss(ious_own, status):.3f}", flush=True)
         if TRACKERS[name][2] == "balance":
             confidence = held_out_presence(cue_matrix(TRACKERS[name][0], rows), rows, ious, args.C, above=0.5)
-            t, k, fl, ml = choose_lost_rule(confidence, ious, starts, forced)
+            t, k, fl, ml = choose_lost_rule(confidence[own], ious_own, starts, forced)
             print(f"  (the same rule on the confidence P(IoU > 0.5) instead, best below {t:.2f} for {k} frame(s): "
                   f"false lost {fl:.3f}, missed loss {ml:.3f})", flush=True)
         if args.table:
-            for t, fl, ml, rate in threshold_table(held, ious, starts, cal.lost_after, forced):
+            for t, fl, ml, rate in threshold_table(held, ious_own, starts, cal.lost_after, forced):
                 print(f"    held out, lost below {t:.2f}: false lost {fl:.3f}, missed loss {ml:.3f}, "
                       f"lost rate {rate:.3f}")
     elif args.table:
         for t, fl, ml, rate in threshold_table(p, ious, np.ones(len(p), bool), 1):
             print(f"    lost below {t:.2f}: false lost {fl:.3f}, missed loss {ml:.3f}, lost rate {rate:.3f}")
     return cal, rows, ious
+
+
+def calibration_json(data: dict) -> str:
+    """``data`` as indented JSON with each list of numbers on one line (a tree model has about a thousand nodes)."""
+    text = json.dumps(data, indent=1)
+    numbers = re.compile(r"\[\s*(-?[0-9][0-9.eE+-]*(?:,\s*-?[0-9][0-9.eE+-]*)*)\s*\]")
+    return numbers.sub(lambda m: "[" + ", ".join(v.strip() for v in m.group(1).split(",")) + "]", text) + "\n"
 
 
 def document(name: str, cal: Calibration, rows, ious, args, seeds, passes: int) -> dict:

@@ -1,4 +1,4 @@
-"""The calibrated confidence: the logistic map, the packaged files, and the filters that use them."""
+"""The calibrated confidence: the logistic and tree maps, the packaged files, and the filters that use them."""
 
 from __future__ import annotations
 
@@ -9,7 +9,7 @@ from vidtrack.errors import UsageError
 from vidtrack.filters import cbt as cbt_filter
 from vidtrack.filters import mil as mil_filter
 from vidtrack.filters import score_trackers
-from vidtrack.filters.calibration import Calibration, LostRule, load_calibration, logistic_probability
+from vidtrack.filters.calibration import Calibration, LostRule, MonotoneTrees, load_calibration, logistic_probability
 from vidtrack.filters.mil import KalmanConfig, MILKalmanFilter
 from vidtrack.types import LOST, TRACKING, Box, Detections, Frame, ScoreMap, Superpixels
 
@@ -50,6 +50,42 @@ def test_the_presence_model_reads_its_own_cues_and_round_trips():
     plain = _calibration()   # without a presence model the status reads P(IoU > 0.5) itself
     assert plain.presence_probability({"a": 0.5}) == plain.probability({"a": 0.5})
     assert "presence" not in plain.to_dict()
+
+
+def _two_trees() -> MonotoneTrees:
+    """Tree 0 splits on cue a at 1 (-1 left, +1 right); tree 1 on b at 0.5, then its right child on a at 3."""
+    return MonotoneTrees(baseline=0.5, feature=np.array([0, -1, -1, 1, -1, 0, -1, -1]),
+                         threshold=np.array([1.0, 0, 0, 0.5, 0, 3.0, 0, 0]),
+                         left=np.array([1, -1, -1, 4, -1, 6, -1, -1]), right=np.array([2, -1, -1, 5, -1, 7, -1, -1]),
+                         value=np.array([0, -1.0, 1.0, 0, 0.25, 0, 2.0, 4.0]), roots=np.array([0, 3]))
+
+
+def test_tree_probability_is_the_logistic_of_the_baseline_and_the_leaves_the_clipped_cues_reach():
+    cal = _calibration(mean=None, scale=None, coef=None, trees=_two_trees())
+    def p(z):
+        return 1.0 / (1.0 + np.exp(-z))
+    assert cal.probability({"a": 0.0, "b": 0.0}) == pytest.approx(p(0.5 - 1.0 + 0.25))
+    assert cal.probability({"a": 2.0, "b": 1.0}) == pytest.approx(p(0.5 + 1.0 + 2.0))
+    assert cal.probability({"a": 20.0, "b": 1.0}) == pytest.approx(p(0.5 + 1.0 + 4.0))   # a clipped to 10
+    assert cal.probability({"a": 2.0}) == pytest.approx(p(0.5 + 1.0 + 2.0))   # b's fill 3, clipped to 2
+    again = Calibration.from_dict(cal.to_dict())
+    assert "coef" not in cal.to_dict() and again.trees is not None
+    for cues in ({"a": 0.5, "b": 0.7}, {"a": 5.0, "b": 0.1}, {"a": -3.0}):
+        assert again.probability(cues) == pytest.approx(cal.probability(cues))
+
+
+def test_bad_trees_are_usage_errors():
+    good = _calibration(mean=None, scale=None, coef=None, trees=_two_trees()).to_dict()
+    def with_trees(**changes):
+        return {**good, "trees": {**good["trees"], **changes}}
+    with pytest.raises(UsageError, match="one value per node"):
+        Calibration.from_dict(with_trees(value=[0.0]))
+    with pytest.raises(UsageError, match="not there"):
+        Calibration.from_dict(with_trees(feature=[2, -1, -1, 1, -1, 0, -1, -1]))   # a third cue: there are two
+    with pytest.raises(UsageError, match="not there"):   # a child before its parent: the walk might not end
+        Calibration.from_dict(with_trees(left=[1, -1, -1, 0, -1, 6, -1, -1]))
+    with pytest.raises(UsageError, match="missing"):
+        Calibration.from_dict({**good, "trees": {"baseline": 0.0}})
 
 
 def test_lost_needs_lost_after_low_frames_in_a_row_or_no_measurement():

@@ -220,3 +220,47 @@ def test_a_bad_compared_set_stops_before_tracking(fit, tmp_path, capsys, tracker
     err = capsys.readouterr().err
     assert code == 2 and says in err and len(err.strip().splitlines()) == 1
     assert not any(tmp_path.iterdir())
+
+
+def test_exported_trees_give_the_fitted_model_s_probability_and_respect_the_cues_directions(fit):
+    """The trees written to the file reproduce scikit-learn's model, and never fall as a rising cue rises."""
+    rng = np.random.default_rng(0)
+    rows = [{"sequence": "AB"[k % 2], "quality": q, "verify_gap": g}
+            for k, (q, g) in enumerate(rng.uniform(0.0, 1.0, (2000, 2)))]
+    x = np.array([[r["quality"], r["verify_gap"]] for r in rows])
+    ious = np.where(x[:, 0] - x[:, 1] + 0.3 * rng.normal(size=2000) > 0.0, 0.8, 0.2)
+    cues = (("quality", 0.0, 0.0, 1.0), ("verify_gap", 0.0, 0.0, 2.0))
+    cal = fit.trees_fit(cues, rows, ious > 0.5)
+    model = fit.trees_model(fit.cue_directions(cues), x, ious > 0.5)
+    assert cal.trees is not None and len(cal.trees.roots) == fit.TREES["max_iter"]
+    ours = [cal.probability(r) for r in rows[:100]]
+    assert np.allclose(ours, model.predict_proba(x[:100])[:, 1], atol=1e-5)
+    grid = np.linspace(0.0, 1.0, 21)
+    rising = [cal.probability({"quality": q, "verify_gap": 0.4}) for q in grid]
+    falling = [cal.probability({"quality": 0.6, "verify_gap": g}) for g in grid]
+    assert np.all(np.diff(rising) >= 0) and np.all(np.diff(falling) <= 0) and rising[-1] - rising[0] > 0.5
+    assert fit.held_out_trees_auc(cues, rows, ious) > 0.8
+
+
+def test_the_score_map_trackers_fit_trees_and_their_lost_rule_on_the_trees_held_out_confidence(fit):
+    """Three sequences whose target is away for 30 frames (low quality) and dips for single frames on it."""
+    rng = np.random.default_rng(1)
+    rows, ious = [], []
+    for name in "ABC":
+        for k in range(300):
+            away = 100 <= k < 130
+            quality = rng.uniform(0.0, 0.3) if away or k % 25 == 7 else rng.uniform(0.5, 1.0)
+            rows.append({"sequence": name, "seed": 0, "quality": quality, "unmeasured": 0.0})
+            ious.append(0.0 if away else 0.7)
+    ious = np.array(ious)
+    cues = (("quality", 0.0, 0.0, 1.0),)
+    cal = fit.fit_cues(cues, "confidence", rows, ious, 1.0, model="trees")
+    assert cal.trees is not None and cal.presence is None
+    assert cal.lost_after >= 2   # a single low frame on the target is not a loss
+    status = fit.lost_status(cal, rows) == "lost"
+    away = ious == 0.0
+    assert status[away].mean() > 0.8 and status[~away].mean() < 0.01
+    assert [fit.TRACKERS[n][3] for n in ("mil", "nh", "pf", "bayes", "cbt")] == ["logistic", "trees", "trees",
+                                                                                  "logistic", "logistic"]
+    with pytest.raises(ValueError, match="trees"):   # mil's presence rule is a logistic model's
+        fit.fit_cues(cues, "balance", rows, ious, 1.0, cues, model="trees")

@@ -24,6 +24,18 @@ half off a turning target is poor, not lost), so with it the status is read
 from the presence: ``lost`` once it has stayed below ``lost_below`` for
 ``lost_after`` frames in a row (:class:`LostRule`), while the reported
 confidence stays ``P(IoU > 0.5)``.
+
+A file may instead map the cues through a sum of small regression trees
+(:class:`MonotoneTrees`, gradient boosting with the log-loss: Friedman,
+"Greedy function approximation: a gradient boosting machine", 2001; fitted
+by scikit-learn's ``HistGradientBoostingClassifier``), each tree constrained
+to be monotone in every cue in the direction the cue's meaning gives::
+
+    P(IoU > 0.5 | x) = 1 / (1 + exp(-(b + sum_t f_t(x))))
+
+A cue's effect may then level off or set in at a value, which the logistic's
+straight log-odds cannot, and the constraints keep the probability from
+falling as a cue improves, wherever the fit's frames are few.
 """
 
 from __future__ import annotations
@@ -47,26 +59,82 @@ def logistic_probability(x: np.ndarray, mean: np.ndarray, scale: np.ndarray, coe
 
 
 @dataclass(frozen=True)
+class MonotoneTrees:
+    """A sum of binary regression trees over the cue vector: the log-odds ``b + sum_t f_t(x)``.
+
+    The trees' nodes are stored flat: node ``i`` splits on cue
+    ``feature[i]`` (``-1`` at a leaf), sending ``x`` to ``left[i]`` when
+    ``x[feature[i]] <= threshold[i]`` and to ``right[i]`` otherwise; a leaf
+    adds ``value[i]``.  ``roots`` holds each tree's first node; a node's
+    children come after it, so every walk ends.
+    """
+
+    baseline: float
+    feature: np.ndarray
+    threshold: np.ndarray
+    left: np.ndarray
+    right: np.ndarray
+    value: np.ndarray
+    roots: np.ndarray
+
+    def log_odds(self, x: np.ndarray) -> float:
+        """``b + sum_t f_t(x)`` for one clipped cue vector ``x`` ``(K,)``, all trees walked together."""
+        x = np.asarray(x, float)
+        node = self.roots.copy()
+        inner = self.feature[node] >= 0
+        while inner.any():
+            at = node[inner]
+            node[inner] = np.where(x[self.feature[at]] <= self.threshold[at], self.left[at], self.right[at])
+            inner = self.feature[node] >= 0
+        return float(self.baseline + self.value[node].sum())
+
+    @classmethod
+    def from_dict(cls, data: Mapping, n_cues: int) -> MonotoneTrees:
+        """From the ``trees`` entry of a calibration file; ``n_cues`` is the length of its cue vector."""
+        ints = {k: np.asarray(data[k], dtype=np.int64) for k in ("feature", "left", "right", "roots")}
+        floats = {k: np.asarray(data[k], dtype=float) for k in ("threshold", "value")}
+        n = len(ints["feature"])
+        if any(a.shape != (n,) for a in (ints["left"], ints["right"], *floats.values())) or ints["roots"].ndim != 1:
+            raise UsageError("calibration file: every node array of the trees needs one value per node")
+        inner = ints["feature"] >= 0
+        index = np.arange(n)
+        if (np.any(ints["feature"] >= n_cues) or np.any((ints["roots"] < 0) | (ints["roots"] >= n))
+                or np.any(inner & ((ints["left"] <= index) | (ints["right"] <= index)
+                                   | (ints["left"] >= n) | (ints["right"] >= n)))):
+            raise UsageError("calibration file: the trees name a cue or a node that is not there")
+        return cls(baseline=float(data["baseline"]), **ints, **floats)
+
+    def to_dict(self) -> dict:
+        """The ``trees`` entry of :meth:`from_dict`."""
+        return {"baseline": round(float(self.baseline), 6),
+                **{k: [int(v) for v in getattr(self, k)] for k in ("feature", "left", "right", "roots")},
+                **{k: [round(float(v), 6) for v in getattr(self, k)] for k in ("threshold", "value")}}
+
+
+@dataclass(frozen=True)
 class Calibration:
-    """Logistic map from named cues to ``P(IoU > 0.5)``; see the module docstring.
+    """Map from named cues to ``P(IoU > 0.5)``: logistic, or monotone trees; see the module docstring.
 
     ``cues`` names the inputs in order; ``fill`` is the value a missing cue
     takes; ``lower``/``upper`` clip each cue (a single extreme frame must not
     dominate); ``lost_below`` is the probability under which a frame is
     ``lost``: of the ``presence`` model ``P(IoU > 0)`` (a calibration of
     its own, whose ``lost_below`` is this one) for ``lost_after`` frames in
-    a row when the file has one, else of ``P(IoU > 0.5)`` itself.
+    a row when the file has one, else of ``P(IoU > 0.5)`` itself.  The map
+    is the logistic of ``mean``, ``scale``, ``coef`` and ``intercept``, or,
+    when ``trees`` is given, that :class:`MonotoneTrees`' log-odds.
     """
 
     cues: tuple[str, ...]
-    mean: np.ndarray
-    scale: np.ndarray
-    coef: np.ndarray
-    intercept: float
     fill: np.ndarray
     lower: np.ndarray
     upper: np.ndarray
     lost_below: float
+    mean: np.ndarray | None = None
+    scale: np.ndarray | None = None
+    coef: np.ndarray | None = None
+    intercept: float = 0.0
+    trees: MonotoneTrees | None = None
     presence: Calibration | None = None
     lost_after: int = 1
 
@@ -78,6 +146,8 @@ class Calibration:
 
     def probability(self, cues: Mapping[str, float]) -> float:
         """``P(IoU > 0.5)`` of one frame's ``cues``."""
+        if self.trees is not None:
+            return float(1.0 / (1.0 + np.exp(-np.clip(self.trees.log_odds(self.vector(cues)), -50.0, 50.0))))
         return float(logistic_probability(self.vector(cues), self.mean, self.scale, self.coef, self.intercept))
 
     def presence_probability(self, cues: Mapping[str, float]) -> float:
@@ -89,13 +159,16 @@ class Calibration:
         """From the JSON layout ``scripts/fit_confidence.py`` writes."""
         try:
             cues = tuple(data["cues"])
-            arrays = {k: np.asarray(data[k], float) for k in ("mean", "scale", "coef", "fill", "lower", "upper")}
+            keys = ("fill", "lower", "upper") if "trees" in data else ("mean", "scale", "coef", "fill", "lower", "upper")
+            arrays = {k: np.asarray(data[k], float) for k in keys}
+            model = ({"trees": MonotoneTrees.from_dict(data["trees"], len(cues))} if "trees" in data
+                     else {"intercept": float(data["intercept"])})
             lost_below = float(data["lost_below"])
             presence = data.get("presence")
             if presence is not None:
                 presence = cls.from_dict({**presence, "lost_below": lost_below})
-            out = cls(cues=cues, intercept=float(data["intercept"]), lost_below=lost_below, presence=presence,
-                      lost_after=int(data.get("lost_after", 1)), **arrays)
+            out = cls(cues=cues, lost_below=lost_below, presence=presence, lost_after=int(data.get("lost_after", 1)),
+                      **model, **arrays)
         except (KeyError, TypeError, ValueError, AttributeError) as exc:
             raise UsageError(f"calibration file: missing or bad field ({exc})") from None
         if any(a.shape != (len(cues),) for a in arrays.values()):
@@ -107,9 +180,13 @@ class Calibration:
     def to_dict(self) -> dict:
         """The JSON layout of :meth:`from_dict`."""
         out: dict = {"cues": list(self.cues)}
-        for key in ("mean", "scale", "coef", "fill", "lower", "upper"):
+        keys = ("fill", "lower", "upper") if self.trees is not None else ("mean", "scale", "coef", "fill", "lower", "upper")
+        for key in keys:
             out[key] = [round(float(v), 6) for v in getattr(self, key)]
-        out["intercept"] = round(float(self.intercept), 6)
+        if self.trees is not None:
+            out["trees"] = self.trees.to_dict()
+        else:
+            out["intercept"] = round(float(self.intercept), 6)
         out["lost_below"] = float(self.lost_below)
         if self.presence is not None:   # its threshold is this one's
             out["presence"] = {k: v for k, v in self.presence.to_dict().items() if k != "lost_below"}
