@@ -1,4 +1,4 @@
-"""Fit the calibrated confidence of ``mil``, ``nh``, ``pf``, ``bayes`` and ``cbt`` on the *tune* split.
+"""Fit the calibrated confidence of ``mil``, ``nh``, ``pf``, ``bayes`` and ``cbt`` on the *tune* split (and copies of it).
 
 Runs each tracker (the score-map trackers and ``cbt`` with their calibration
 switched off, so the cues are those of the uncalibrated tracker, and their
@@ -59,12 +59,14 @@ model); ``cbt``'s likewise, a frame it does not measure (its uncalibrated
 confidence below its ``lost_below``) being its skipped update.  With copies
 pooled, the rule is chosen on the frames of the sequences themselves
 (:func:`own_rows`): the copies teach the confidence what their failures look
-like, but fail far more often than real video.  The script prints, per tracker, the frames used, the coefficients,
-the tune ROC AUC, expected calibration error, false lost and missed loss of
-the fitted confidence (with the status as the filter reports it), and the ROC AUC with each sequence held out
-(:func:`held_out_auc`); ``--select`` also prints the forward selection of
-cues on that held-out figure (:func:`select_cues`), the figure the packaged
-cue sets were chosen by, and for ``mil``'s presence model the forward selection on the
+like, but fail far more often than real video.  The script prints, per
+tracker, the frames used, the coefficients (or the trees' count and
+directions), the tune ROC AUC, expected calibration error, false lost and
+missed loss of the fitted confidence (with the status as the filter reports
+it), and the ROC AUC with each sequence held out (:func:`held_out_auc`, or
+:func:`held_out_trees_auc`); ``--select`` also prints the forward selection of
+cues on the logistic's held-out figure (:func:`select_cues`), the figure the packaged
+cue sets were chosen by (the trees read the sets chosen so), and for ``mil``'s presence model the forward selection on the
 held-out lost rule's cost (:func:`select_presence_cues`).  A frame in which
 ``mil`` measured nothing at all (its ``unmeasured`` scalar) is lost whatever
 its presence, in the fit as in the filter.
@@ -122,10 +124,7 @@ BAYES_CUES = tuple(c for c in score_trackers.CUES if c[0] in ("verify_mean", "co
 CBT_CUES = tuple(c for c in cbt_filter.CUES if c[0] in ("colour_mean", "verify_mean", "mode_mass"))
 
 #: tracker -> (its cues, the setting that switches its calibration off, the rule of its lost threshold, its model:
-#: ``"logistic"`` or monotone ``"trees"``).  Fitted on *tune* and its copies, ``nh``'s and ``pf``'s trees rank the
-#: frames of a sequence held out of the fit better than their logistic on *tune* alone, on every folder; ``bayes``'s
-#: trees cost it accuracy on copies they were not fitted on, and ``mil``'s logistic ranks its frames better than
-#: trees on the same cues (docs/trackers.md).
+#: ``"logistic"`` or monotone ``"trees"``; docs/trackers.md gives the held-out figures each model was chosen by).
 TRACKERS = {
     "mil": (MIL_CUES, {}, "balance", "logistic"),   # run as packaged: its lost rule steers its search (--passes 2)
     "nh": (NH_CUES, {"confidence": None}, "confidence", "trees"),   # its lost rule steers its detector (--passes 2)
@@ -316,7 +315,7 @@ def lost_status(cal: Calibration, rows: list[dict]) -> np.ndarray:
 
 def fit(name: str, rows: list[dict], ious: np.ndarray, C: float,
         held_presence: np.ndarray | None = None) -> Calibration:
-    """Logistic regression of ``IoU > 0.5`` on the standardised, clipped cues of ``name``.
+    """``name``'s model (:data:`TRACKERS`: logistic or monotone trees) of ``IoU > 0.5`` on its clipped cues.
 
     ``held_presence``: as in :func:`fit_cues`.
     """
@@ -408,12 +407,11 @@ def select_presence_cues(table, rows: list[dict], ious: np.ndarray, C: float = 1
     """Forward selection of the presence model's cues on the held-out lost rule's :func:`lost_rule_cost`.
 
     From no cue, add the cue of ``table`` whose held-out presence (:func:`held_out_presence`), under its
-    best rule (:func:`choose_lost_rule`), lowers the cost most; stop when no cue lowers it by
+    best rule (:func:`chosen_lost_rule`), lowers the cost most; stop when no cue lowers it by
     ``min_gain``.  Returns the chosen cues (rows of ``table``) and a line per step.
     """
     table = tuple(table)
     X = cue_matrix(table, rows)
-    starts, forced = run_starts(rows), unmeasured_rows(rows)
     chosen, best, lines = [], np.inf, []
     while len(chosen) < len(table):
         scored = []
@@ -421,7 +419,7 @@ def select_presence_cues(table, rows: list[dict], ious: np.ndarray, C: float = 1
             if cue in chosen:
                 continue
             held = held_out_presence(X[:, [table.index(c) for c in (*chosen, cue)]], rows, ious, C)
-            t, k, fl, ml = choose_lost_rule(held, ious, starts, forced)
+            t, k, fl, ml = chosen_lost_rule(held, rows, ious)
             scored.append((lost_rule_cost(fl, ml), cue, t, k, fl, ml))
         cost, cue, t, k, fl, ml = min(scored, key=lambda s: s[0])
         if not cost <= best - min_gain:
@@ -439,13 +437,12 @@ def compare_cue_sets(table, sets, rows: list[dict], ious: np.ndarray, C: float =
 
     Each line holds the leave-one-sequence-out ROC AUC of a confidence on those cues (:func:`held_out_auc`)
     and, with ``presence``, the cost of the lost rule with them as the presence cues (the rule chosen on
-    the held-out presence as the fit chooses it: :func:`held_out_presence`, :func:`choose_lost_rule`).
+    the held-out presence as the fit chooses it: :func:`held_out_presence`, :func:`chosen_lost_rule`).
     A cue that no frame carries (one the tracker does not compute, or frames cached by an older tracker)
     is said so at the end of its line: its fill value stands in for it.
     """
     table = tuple(table)
     X = cue_matrix(table, rows)
-    starts, forced = run_starts(rows), unmeasured_rows(rows)
     lines = []
     for names in sets:
         cues = tuple(next(c for c in table if c[0] == n) for n in names)
@@ -453,7 +450,7 @@ def compare_cue_sets(table, sets, rows: list[dict], ious: np.ndarray, C: float =
         line = f"  {', '.join(names)}: held-out ROC AUC {held_out_auc(cues, rows, ious, C, X[:, columns]):.3f}"
         if presence:
             held = held_out_presence(X[:, columns], rows, ious, C)
-            t, k, fl, ml = choose_lost_rule(held, ious, starts, forced)
+            t, k, fl, ml = chosen_lost_rule(held, rows, ious)
             line += (f"; as the presence cues, held-out cost {lost_rule_cost(fl, ml):.2f} (below {t:.2f} for {k} "
                      f"frame(s): false lost {fl:.3f}, missed loss {ml:.3f})")
         absent = [n for n in names if not any(n in r for r in rows)]
@@ -522,7 +519,7 @@ def trees_fit(cues, rows: list[dict], labels: np.ndarray, lost_below: float = 0.
 
 def fit_cues(cues, rule: str, rows: list[dict], ious: np.ndarray, C: float, presence_cues=None,
              held_presence: np.ndarray | None = None, model: str = "logistic") -> Calibration:
-    """Logistic regression of ``IoU > 0.5`` on the standardised, clipped ``cues``; ``rule`` sets the threshold.
+    """The ``model`` of ``IoU > 0.5`` on the clipped ``cues`` (logistic: standardised); ``rule`` sets the threshold.
 
     ``"balance"``: the status from a presence model, ``IoU > 0`` on ``presence_cues``, lost below a
     threshold for some frames in a row (:func:`choose_lost_rule` on held-out frames: ``held_presence``,

@@ -66,8 +66,11 @@ def test_tree_probability_is_the_logistic_of_the_baseline_and_the_leaves_the_cli
         return 1.0 / (1.0 + np.exp(-z))
     assert cal.probability({"a": 0.0, "b": 0.0}) == pytest.approx(p(0.5 - 1.0 + 0.25))
     assert cal.probability({"a": 2.0, "b": 1.0}) == pytest.approx(p(0.5 + 1.0 + 2.0))
-    assert cal.probability({"a": 20.0, "b": 1.0}) == pytest.approx(p(0.5 + 1.0 + 4.0))   # a clipped to 10
+    assert cal.probability({"a": 20.0, "b": 1.0}) == pytest.approx(p(0.5 + 1.0 + 4.0))
     assert cal.probability({"a": 2.0}) == pytest.approx(p(0.5 + 1.0 + 2.0))   # b's fill 3, clipped to 2
+    # the cues are clipped before the trees see them: a clipped to 2.5 stays below tree 1's split at 3
+    capped = _calibration(mean=None, scale=None, coef=None, trees=_two_trees(), upper=np.array([2.5, 2.0]))
+    assert capped.probability({"a": 20.0, "b": 1.0}) == pytest.approx(p(0.5 + 1.0 + 2.0))
     again = Calibration.from_dict(cal.to_dict())
     assert "coef" not in cal.to_dict() and again.trees is not None
     for cues in ({"a": 0.5, "b": 0.7}, {"a": 5.0, "b": 0.1}, {"a": -3.0}):
@@ -86,6 +89,12 @@ def test_bad_trees_are_usage_errors():
         Calibration.from_dict(with_trees(left=[1, -1, -1, 0, -1, 6, -1, -1]))
     with pytest.raises(UsageError, match="missing"):
         Calibration.from_dict({**good, "trees": {"baseline": 0.0}})
+    with pytest.raises(UsageError, match="not there"):   # an index too large for any array
+        Calibration.from_dict(with_trees(roots=[0, 2 ** 70]))
+    with pytest.raises(UsageError, match="whole numbers"):
+        Calibration.from_dict(with_trees(roots=[0, 3.5]))
+    with pytest.raises(UsageError, match="not finite"):
+        Calibration.from_dict(with_trees(value=[0, -1.0, float("nan"), 0, 0.25, 0, 2.0, 4.0]))
 
 
 def test_lost_needs_lost_after_low_frames_in_a_row_or_no_measurement():

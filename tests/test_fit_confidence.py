@@ -264,3 +264,21 @@ def test_the_score_map_trackers_fit_trees_and_their_lost_rule_on_the_trees_held_
                                                                                   "logistic", "logistic"]
     with pytest.raises(ValueError, match="trees"):   # mil's presence rule is a logistic model's
         fit.fit_cues(cues, "balance", rows, ious, 1.0, cues, model="trees")
+
+
+def test_with_copies_pooled_the_lost_rule_is_chosen_on_the_sequences_own_frames(fit):
+    """A copy whose losses look like the sequences' single dips must not make the rule catch those dips."""
+    rows, ious, held = _two_losses({"quality": 0.8, "unmeasured": 0.0}, {"quality": 0.1}, low=0.2)
+    own = fit.chosen_lost_rule(held, rows, ious)
+    # the same sequences in a copy (copy 1) where the target is away in runs of one frame, at the dips' level
+    copy_rows = [{**r, "copy": 1} for r in rows]
+    copy_ious = np.where(np.arange(80) % 4 == 1, 0.0, 0.7)
+    copy_held = np.where(copy_ious > 0, 0.9, 0.2)
+    pooled_rows, pooled_ious = rows + copy_rows, np.concatenate([ious, copy_ious])
+    pooled_held = np.concatenate([held, copy_held])
+    assert fit.own_rows(pooled_rows).tolist() == [True] * 80 + [False] * 80
+    assert fit.chosen_lost_rule(pooled_held, pooled_rows, pooled_ious) == own
+    assert own[1] == 2   # two low frames in a row on the sequences' own frames
+    everything = fit.choose_lost_rule(pooled_held, pooled_ious, fit.run_starts(pooled_rows),
+                                      fit.unmeasured_rows(pooled_rows))
+    assert everything[1] == 1   # on all frames the copy's one-frame losses would make one low frame a loss

@@ -91,10 +91,19 @@ class MonotoneTrees:
     @classmethod
     def from_dict(cls, data: Mapping, n_cues: int) -> MonotoneTrees:
         """From the ``trees`` entry of a calibration file; ``n_cues`` is the length of its cue vector."""
-        ints = {k: np.asarray(data[k], dtype=np.int64) for k in ("feature", "left", "right", "roots")}
-        floats = {k: np.asarray(data[k], dtype=float) for k in ("threshold", "value")}
-        n = len(ints["feature"])
-        if any(a.shape != (n,) for a in (ints["left"], ints["right"], *floats.values())) or ints["roots"].ndim != 1:
+        numbers = {k: np.asarray(data[k], dtype=float) for k in ("feature", "left", "right", "roots", "threshold",
+                                                                   "value")}
+        if not all(np.all(np.isfinite(v)) for v in numbers.values()) or not np.isfinite(float(data["baseline"])):
+            raise UsageError("calibration file: the trees hold a number that is not finite")
+        if any(np.any(numbers[k] != np.round(numbers[k])) for k in ("feature", "left", "right", "roots")):
+            raise UsageError("calibration file: the trees' cue and node indices must be whole numbers")
+        n = len(numbers["feature"])
+        if any(np.any(np.abs(numbers[k]) > max(n, n_cues)) for k in ("feature", "left", "right", "roots")):
+            raise UsageError("calibration file: the trees name a cue or a node that is not there")
+        ints = {k: numbers[k].astype(np.int64) for k in ("feature", "left", "right", "roots")}
+        floats = {k: numbers[k] for k in ("threshold", "value")}
+        if any(a.shape != (n,) for a in (ints["feature"], ints["left"], ints["right"], *floats.values())) \
+                or ints["roots"].ndim != 1:
             raise UsageError("calibration file: every node array of the trees needs one value per node")
         inner = ints["feature"] >= 0
         index = np.arange(n)
