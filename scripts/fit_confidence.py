@@ -362,6 +362,12 @@ def held_out_auc(cues, rows: list[dict], ious: np.ndarray, C: float = 1.0, X: np
     return conf_metrics.roc_auc(z, y)
 
 
+def held_out_confidence(cues, model: str, rows: list[dict], ious: np.ndarray, C: float) -> np.ndarray:
+    """``P(IoU > 0.5)`` of each row from ``model`` (``"logistic"`` or ``"trees"``) fitted on the other sequences."""
+    directions = cue_directions(cues) if model == "trees" else None
+    return held_out_presence(cue_matrix(cues, rows), rows, ious, C, above=0.5, directions=directions)
+
+
 def held_out_trees_auc(cues, rows: list[dict], ious: np.ndarray) -> float:
     """Leave-one-sequence-out ROC AUC of the monotone trees on ``cues``, like :func:`held_out_auc`.
 
@@ -531,8 +537,7 @@ def fit_cues(cues, rule: str, rows: list[dict], ious: np.ndarray, C: float, pres
     trees = model == "trees"
     cal = trees_fit(cues, rows, ious > 0.5) if trees else logistic_fit(cues, rows, ious > 0.5, C)
     if rule == "confidence":
-        held = held_presence if held_presence is not None else held_out_presence(
-            cue_matrix(cues, rows), rows, ious, C, above=0.5, directions=cue_directions(cues) if trees else None)
+        held = held_presence if held_presence is not None else held_out_confidence(cues, model, rows, ious, C)
         threshold, lost_after, _, _ = chosen_lost_rule(held, rows, ious)
         return replace(cal, lost_below=threshold, lost_after=lost_after)
     if rule != "balance" or trees:
@@ -598,11 +603,6 @@ def main(argv=None) -> int:
     return 0
 
 
-def cal_model(name: str) -> str:
-    """The model kind of ``name``'s calibration: ``"logistic"`` or ``"trees"``."""
-    return TRACKERS[name][3]
-
-
 def copy_names(args) -> list[str]:
     """The names of the dataset folders after the first: the copies whose frames are pooled with it."""
     return [Path(d).resolve().name for d in args.dataset[1:]]
@@ -631,9 +631,7 @@ def fit_pass(name, folders, seeds, args, *, calibrated: bool):
     if TRACKERS[name][2] == "balance":
         held = held_out_presence(cue_matrix(PRESENCE_CUES[name], rows), rows, ious, args.C)
     elif TRACKERS[name][2] == "confidence":
-        cues = TRACKERS[name][0]
-        held = held_out_presence(cue_matrix(cues, rows), rows, ious, args.C, above=0.5,
-                                 directions=cue_directions(cues) if cal_model(name) == "trees" else None)
+        held = held_out_confidence(TRACKERS[name][0], TRACKERS[name][3], rows, ious, args.C)
     cal = fit(name, rows, ious, args.C, held)
     own = own_rows(rows)   # the figures below are the sequences' own (the copies only join the fit)
     p = np.array([cal.probability(r) for r in rows])
@@ -641,7 +639,7 @@ def fit_pass(name, folders, seeds, args, *, calibrated: bool):
     m = conf_metrics.confidence_metrics(ious[own], p[own], status[own])
     if cal.trees is not None:
         weights = (f"{len(cal.trees.roots)} trees monotone in "
-                   + ", ".join(f"{c} {'+' if d > 0 else '-'}" for c, d in zip(cal.cues, cue_directions(TRACKERS[name][0]))))
+                   + ", ".join(f"{c} {'+' if CUE_DIRECTION[c] > 0 else '-'}" for c in cal.cues))
     else:
         weights = ", ".join(f"{c} {w:+.2f}" for c, w in zip(cal.cues, cal.coef))
     lost = f"lost below {cal.lost_below:.3f}" + (f" for {cal.lost_after} frame(s)" if cal.lost_after > 1 else "")
