@@ -132,7 +132,8 @@ TRACKERS = {
     "bayes": (BAYES_CUES, {"confidence": None}, "confidence", "logistic"),
     "cbt": (CBT_CUES, {"confidence": None}, "confidence", "logistic"),
 }
-#: The direction in which ``P(IoU > 0.5)`` moves with each cue a tree model reads (its monotone constraints).
+#: The direction in which ``P(IoU > 0.5)`` moves with each cue a tree model reads (its monotone constraints);
+#: every tracker's cues have one, as ``scripts/compare_confidence_models.py`` fits trees for each.
 CUE_DIRECTION = {
     "quality": 1,       # the detector's peak stands out of its map: it sees a target
     "verify_gap": -1,   # the first frame's target matches better elsewhere in the region: the box is beside it
@@ -140,6 +141,10 @@ CUE_DIRECTION = {
     "colour_mean": 1,   # the box holds the first frame's target colours
     "border_gap": 1,    # a box that has lost its target comes to rest against the frame's edge
     "spread": -1,       # the posterior is spread over several places
+    "inlier_coverage": 1,   # mil: the superpixels its classifier calls target cover the box
+    "present": 1,       # mil: its fusion found the target in this frame
+    "colour": 1,        # the box holds the first frame's target colours, in this frame alone
+    "mode_mass": 1,     # cbt: the channel representation's mode holds most of the mass
 }
 #: The gradient boosting of the tree models: 100 trees of depth 3, each leaf at least 100 frames
 TREES = {"max_iter": 100, "learning_rate": 0.05, "max_depth": 3, "min_samples_leaf": 100}

@@ -1,0 +1,172 @@
+"""Compare the calibrated confidence's models on frames their fit has not seen, copies of *tune* among them.
+
+``scripts/fit_confidence.py`` fits each tracker's ``P(IoU > 0.5)`` as a
+logistic function of its cues or as monotone gradient-boosted trees
+(:data:`fit_confidence.TRACKERS`), on *tune* alone or on *tune* pooled with
+copies of it that hold failures *tune* has few of.  This script prints what
+that choice is made by: each tracker is run over *tune* and the copies (the
+score-map trackers and ``cbt`` with their calibration switched off, ``mil`` as
+packaged, as the fit's first pass runs them), and each of the four models
+
+* the logistic fitted on *tune* alone,
+* the logistic fitted on *tune* and the fitted copies,
+* the trees fitted on *tune* alone,
+* the trees fitted on *tune* and the fitted copies,
+
+gives every frame of a sequence its probability from the fit on the other
+sequences (a sequence is held out together with its copies).  The table holds
+the ROC AUC of that probability for ``IoU > 0.5``, frames pooled, in each
+folder, and over the ``--unseen`` folders: copies that no model is fitted on,
+the nearest stand-in here for video the trackers have not seen::
+
+    python scripts/compare_confidence_models.py ../shared/data/sequences OCC1 OCC3 EDGE \\
+        --unseen OCC2 FAST2 ZOOM --trackers nh,pf --seeds 0 --cache /tmp/frames
+
+The first folder is *tune*'s (``../shared/data/sequences``, whose *tune*
+sequences are taken); the others are copies written by
+``scripts/occlude_sequences.py``, ``edge_sequences.py``, ``stride_sequences.py``
+and ``zoom_sequences.py`` with ``--sequences`` the *tune* split.  ``--cache DIR``
+keeps each tracker's frames per folder (``<tracker>-<seeds>-<folder name>.json``)
+to compare again without tracking.  A tracker without a calibration, a cue
+without a monotone direction (:data:`fit_confidence.CUE_DIRECTION`) or a folder
+without one of the sequences stops the script with one line on stderr and exit
+status 2.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from pathlib import Path
+
+import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+
+import fit_confidence as fit  # noqa: E402
+
+from vidtrack.errors import DatasetError  # noqa: E402
+from vidtrack.eval import confidence as conf_metrics  # noqa: E402
+from vidtrack.eval.datasets import load_dataset  # noqa: E402
+
+#: The models compared: (label, model kind, fitted on the copies too).
+MODELS = (("logistic, tune", "logistic", False), ("logistic, tune + copies", "logistic", True),
+          ("trees, tune", "trees", False), ("trees, tune + copies", "trees", True))
+
+
+def held_out_probability(kind: str, X: np.ndarray, labels: np.ndarray, sequences: np.ndarray,
+                         fitted: np.ndarray, directions, C: float) -> np.ndarray:
+    """Each row's ``P(IoU > 0.5)`` from the ``kind`` model fitted on the ``fitted`` rows of the other sequences.
+
+    ``kind``: ``"logistic"`` (on the cues standardised over its training rows, inverse regularisation ``C``)
+    or ``"trees"`` (:func:`fit_confidence.trees_model`, monotone in ``directions``).
+    """
+    from sklearn.linear_model import LogisticRegression
+
+    p = np.zeros(len(labels))
+    for name in np.unique(sequences):
+        test, train = sequences == name, fitted & (sequences != name)
+        if kind == "trees":
+            p[test] = fit.trees_model(directions, X[train], labels[train]).predict_proba(X[test])[:, 1]
+            continue
+        mean, scale = X[train].mean(axis=0), X[train].std(axis=0)
+        scale = np.where(scale > 1e-9, scale, 1.0)
+        model = LogisticRegression(C=C, max_iter=1000).fit((X[train] - mean) / scale, labels[train])
+        p[test] = model.predict_proba((X[test] - mean) / scale)[:, 1]
+    return p
+
+
+def compare(cues, rows: list[dict], ious: np.ndarray, n_fitted: int, C: float = 1.0) -> dict[str, np.ndarray]:
+    """Per model of :data:`MODELS`, the ROC AUC in each folder (``copy`` index of the rows) and over the unseen.
+
+    Folders ``0 .. n_fitted - 1`` are fitted on (0 is *tune*); the rest are unseen.  Returns ``{label: (F + 1,)
+    array}``, the last value over the unseen folders pooled (nan without any).
+    """
+    X, labels = fit.cue_matrix(cues, rows), ious > 0.5
+    sequences = np.array([r.get("sequence", "") for r in rows])
+    copy = np.array([r.get("copy", 0) for r in rows])
+    directions = fit.cue_directions(cues)
+    unseen = copy >= n_fitted
+    table = {}
+    for label, kind, with_copies in MODELS:
+        fitted = (copy < n_fitted) if with_copies else (copy == 0)
+        p = held_out_probability(kind, X, labels, sequences, fitted, directions, C)
+        cells = [conf_metrics.roc_auc(p[copy == c], labels[copy == c]) for c in range(int(copy.max()) + 1)]
+        cells.append(conf_metrics.roc_auc(p[unseen], labels[unseen]) if unseen.any() else float("nan"))
+        table[label] = np.array(cells)
+    return table
+
+
+def folder_frames(name: str, dataset: str, sequences: list[str], seeds: list[int], cache: Path | None):
+    """The tracker's rows and IoUs on one folder's ``sequences`` (from ``cache`` when it holds them)."""
+    path = None
+    if cache is not None:
+        path = cache / f"{name}-{'-'.join(map(str, seeds))}-{Path(dataset).resolve().name}.json"
+        if path.is_file():
+            saved = json.loads(path.read_text(encoding="utf-8"))
+            return saved["rows"], np.array(saved["ious"])
+    rows, ious = fit.collect(name, [load_dataset(dataset, sequences)], seeds)
+    if path is not None:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        path.write_text(json.dumps({"rows": rows, "ious": ious.tolist()}), encoding="utf-8")
+    return rows, ious
+
+
+def markdown(name: str, table: dict[str, np.ndarray], folders: list[str], n_fitted: int) -> str:
+    """``table`` as a Markdown table: a row per model, a column per folder and the unseen pooled."""
+    heads = [Path(f).resolve().name + ("" if k < n_fitted else " (unseen)") for k, f in enumerate(folders)]
+    heads[0] = "tune"
+    lines = [f"`{name}`, held-out ROC AUC of P(IoU > 0.5)", "",
+             "| model | " + " | ".join(heads + ["unseen, pooled"]) + " |", "|---" * (len(heads) + 2) + "|"]
+    lines += [f"| {label} | " + " | ".join(f"{v:.3f}" for v in cells) + " |" for label, cells in table.items()]
+    return "\n".join(lines)
+
+
+def main(argv=None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("dataset", nargs="+", help="the shared sequences' folder, then the copies fitted on")
+    parser.add_argument("--unseen", nargs="*", default=[], help="copies no model is fitted on")
+    parser.add_argument("--trackers", default="nh,pf")
+    parser.add_argument("--sequences", default=fit.TUNE)
+    parser.add_argument("--seeds", default="0")
+    parser.add_argument("--C", type=float, default=1.0, help="inverse L2 regularisation of the logistic fit")
+    parser.add_argument("--cache", type=Path, help="keep (and reuse) each tracker's frames per folder here")
+    args = parser.parse_args(argv)
+
+    def stop(message: str) -> int:
+        print(f"compare_confidence_models: {message}", file=sys.stderr)
+        return 2
+
+    names = [n for n in args.trackers.split(",") if n]
+    unknown = [n for n in names if n not in fit.TRACKERS]
+    if unknown:
+        return stop(f"no calibration for {unknown[0]!r}; valid: {', '.join(fit.TRACKERS)}")
+    for name in names:
+        missing = [c[0] for c in fit.TRACKERS[name][0] if c[0] not in fit.CUE_DIRECTION]
+        if missing:
+            return stop(f"{name}'s cue {missing[0]!r} has no monotone direction (fit_confidence.CUE_DIRECTION)")
+    try:
+        seeds = [int(s) for s in args.seeds.split(",")]
+    except ValueError:
+        return stop(f"--seeds: expected integers separated by commas, got {args.seeds!r}")
+    folders, sequences = args.dataset + args.unseen, args.sequences.split(",")
+    try:
+        for folder in folders:
+            load_dataset(folder, sequences)
+    except DatasetError as exc:
+        return stop(str(exc))
+    for name in names:
+        rows, ious = [], []
+        for copy, folder in enumerate(folders):
+            folder_rows, folder_ious = folder_frames(name, folder, sequences, seeds, args.cache)
+            rows += [{**r, "copy": copy} for r in folder_rows]
+            ious.append(folder_ious)
+        table = compare(fit.TRACKERS[name][0], rows, np.concatenate(ious), len(args.dataset), args.C)
+        print(markdown(name, table, folders, len(args.dataset)) + "\n", flush=True)
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
