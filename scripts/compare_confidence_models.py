@@ -17,7 +17,10 @@ gives every frame of a sequence its probability from the fit on the other
 sequences (a sequence is held out together with its copies).  The table holds
 the ROC AUC of that probability for ``IoU > 0.5``, frames pooled, in each
 folder, and over the ``--unseen`` folders: copies that no model is fitted on,
-the nearest stand-in here for video the trackers have not seen::
+the nearest stand-in here for video the trackers have not seen.  The figure is
+that of the probability a tracker would report, each fit's baseline included;
+``fit_confidence.py``'s own held-out figure (:func:`fit_confidence.held_out_auc`)
+leaves the baseline out to judge cue sets by their ranking alone::
 
     python scripts/compare_confidence_models.py ../shared/data/sequences OCC1 OCC3 EDGE \\
         --unseen OCC2 FAST2 ZOOM --trackers nh,pf --seeds 0 --cache /tmp/frames
@@ -26,16 +29,19 @@ The first folder is *tune*'s (``../shared/data/sequences``, whose *tune*
 sequences are taken); the others are copies written by
 ``scripts/occlude_sequences.py``, ``edge_sequences.py``, ``stride_sequences.py``
 and ``zoom_sequences.py`` with ``--sequences`` the *tune* split.  ``--cache DIR``
-keeps each tracker's frames per folder (``<tracker>-<seeds>-<folder name>.json``)
-to compare again without tracking.  A tracker without a calibration, a cue
-without a monotone direction (:data:`fit_confidence.CUE_DIRECTION`) or a folder
-without one of the sequences stops the script with one line on stderr and exit
-status 2.
+keeps each tracker's frames per folder
+(a name of the folder, the seeds and the sequences) to compare again without
+tracking.  A tracker without a calibration, a cue without a monotone direction
+(:data:`fit_confidence.CUE_DIRECTION`), a folder without one of the sequences,
+a cache that is not a folder or holds frames without the tracker's cues, or
+frames that are all on one side of IoU 0.5 for some fit stop the script with
+one line on stderr and exit status 2.
 """
 
 from __future__ import annotations
 
 import argparse
+import hashlib
 import json
 import sys
 from pathlib import Path
@@ -47,7 +53,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 import fit_confidence as fit  # noqa: E402
 
-from vidtrack.errors import DatasetError  # noqa: E402
+from vidtrack.errors import UsageError, VidtrackError  # noqa: E402
 from vidtrack.eval import confidence as conf_metrics  # noqa: E402
 from vidtrack.eval.datasets import load_dataset  # noqa: E402
 
@@ -56,57 +62,72 @@ MODELS = (("logistic, tune", "logistic", False), ("logistic, tune + copies", "lo
           ("trees, tune", "trees", False), ("trees, tune + copies", "trees", True))
 
 
-def held_out_probability(kind: str, X: np.ndarray, labels: np.ndarray, sequences: np.ndarray,
-                         fitted: np.ndarray, directions, C: float) -> np.ndarray:
-    """Each row's ``P(IoU > 0.5)`` from the ``kind`` model fitted on the ``fitted`` rows of the other sequences.
+def compare(cues, rows: list[dict], ious: np.ndarray, n_folders: int, n_fitted: int,
+            C: float = 1.0) -> dict[str, np.ndarray]:
+    """The ROC AUC of each model of :data:`MODELS` on the frames of each folder and of the unseen folders.
 
-    ``kind``: ``"logistic"`` (on the cues standardised over its training rows, inverse regularisation ``C``)
-    or ``"trees"`` (:func:`fit_confidence.trees_model`, monotone in ``directions``).
+    Parameters
+    ----------
+    cues
+        The tracker's cues, rows of :data:`fit_confidence.TRACKERS`.
+    rows, ious
+        The frames' scalars (with ``sequence`` and ``copy``, the index of their folder) and their IoUs.
+    n_folders, n_fitted
+        How many folders there are, and how many of them are fitted on: ``0 .. n_fitted - 1`` (0 is *tune*).
+    C
+        Inverse L2 regularisation of the logistic fit.
+
+    Returns
+    -------
+    dict
+        ``{label: (n_folders + 1,) array}``: the ROC AUC in each folder, then over the unseen folders pooled
+        (nan without any).
+
+    Raises
+    ------
+    UsageError
+        When a fit would see frames on one side of IoU 0.5 only.
     """
-    from sklearn.linear_model import LogisticRegression
-
-    p = np.zeros(len(labels))
-    for name in np.unique(sequences):
-        test, train = sequences == name, fitted & (sequences != name)
-        if kind == "trees":
-            p[test] = fit.trees_model(directions, X[train], labels[train]).predict_proba(X[test])[:, 1]
-            continue
-        mean, scale = X[train].mean(axis=0), X[train].std(axis=0)
-        scale = np.where(scale > 1e-9, scale, 1.0)
-        model = LogisticRegression(C=C, max_iter=1000).fit((X[train] - mean) / scale, labels[train])
-        p[test] = model.predict_proba((X[test] - mean) / scale)[:, 1]
-    return p
-
-
-def compare(cues, rows: list[dict], ious: np.ndarray, n_fitted: int, C: float = 1.0) -> dict[str, np.ndarray]:
-    """Per model of :data:`MODELS`, the ROC AUC in each folder (``copy`` index of the rows) and over the unseen.
-
-    Folders ``0 .. n_fitted - 1`` are fitted on (0 is *tune*); the rest are unseen.  Returns ``{label: (F + 1,)
-    array}``, the last value over the unseen folders pooled (nan without any).
-    """
-    X, labels = fit.cue_matrix(cues, rows), ious > 0.5
+    labels = ious > 0.5
     sequences = np.array([r.get("sequence", "") for r in rows])
     copy = np.array([r.get("copy", 0) for r in rows])
-    directions = fit.cue_directions(cues)
     unseen = copy >= n_fitted
     table = {}
     for label, kind, with_copies in MODELS:
         fitted = (copy < n_fitted) if with_copies else (copy == 0)
-        p = held_out_probability(kind, X, labels, sequences, fitted, directions, C)
-        cells = [conf_metrics.roc_auc(p[copy == c], labels[copy == c]) for c in range(int(copy.max()) + 1)]
+        for name in np.unique(sequences):
+            if len(np.unique(labels[fitted & (sequences != name)])) < 2:
+                raise UsageError(f"the {label} fit without {name} sees frames on one side of IoU 0.5 only")
+        p = fit.held_out_confidence(cues, kind, rows, ious, C, fitted=fitted)
+        cells = [conf_metrics.roc_auc(p[copy == c], labels[copy == c]) for c in range(n_folders)]
         cells.append(conf_metrics.roc_auc(p[unseen], labels[unseen]) if unseen.any() else float("nan"))
         table[label] = np.array(cells)
     return table
 
 
-def folder_frames(name: str, dataset: str, sequences: list[str], seeds: list[int], cache: Path | None):
-    """The tracker's rows and IoUs on one folder's ``sequences`` (from ``cache`` when it holds them)."""
-    path = None
-    if cache is not None:
-        path = cache / f"{name}-{'-'.join(map(str, seeds))}-{Path(dataset).resolve().name}.json"
-        if path.is_file():
-            saved = json.loads(path.read_text(encoding="utf-8"))
-            return saved["rows"], np.array(saved["ious"])
+def cache_path(cache: Path, name: str, dataset: str, sequences: list[str], seeds: list[int]) -> Path:
+    """Where ``cache`` keeps ``name``'s frames on ``dataset``'s ``sequences`` at ``seeds``."""
+    key = hashlib.sha1("\n".join([str(Path(dataset).resolve()), *sequences, *map(str, seeds)]).encode()).hexdigest()
+    return cache / f"{name}-{Path(dataset).resolve().name}-{key[:10]}.json"
+
+
+def folder_frames(name: str, dataset: str, sequences: list[str], seeds: list[int],
+                  cache: Path | None) -> tuple[list[dict], np.ndarray]:
+    """The tracker's rows and IoUs on one folder's ``sequences`` (from ``cache`` when it holds them).
+
+    Raises
+    ------
+    UsageError
+        When the cached frames lack one of the tracker's cues (frames of an older tracker).
+    """
+    path = None if cache is None else cache_path(cache, name, dataset, sequences, seeds)
+    if path is not None and path.is_file():
+        saved = json.loads(path.read_text(encoding="utf-8"))
+        rows, ious = saved["rows"], np.array(saved["ious"])
+        missing = [c[0] for c in fit.TRACKERS[name][0] if not any(c[0] in r for r in rows)]
+        if missing:
+            raise UsageError(f"{path} has no frame with the cue {missing[0]!r}; delete it to collect again")
+        return rows, ious
     rows, ious = fit.collect(name, [load_dataset(dataset, sequences)], seeds)
     if path is not None:
         path.parent.mkdir(parents=True, exist_ok=True)
@@ -140,6 +161,8 @@ def main(argv=None) -> int:
         return 2
 
     names = [n for n in args.trackers.split(",") if n]
+    if not names:
+        return stop("--trackers: name at least one tracker")
     unknown = [n for n in names if n not in fit.TRACKERS]
     if unknown:
         return stop(f"no calibration for {unknown[0]!r}; valid: {', '.join(fit.TRACKERS)}")
@@ -151,20 +174,24 @@ def main(argv=None) -> int:
         seeds = [int(s) for s in args.seeds.split(",")]
     except ValueError:
         return stop(f"--seeds: expected integers separated by commas, got {args.seeds!r}")
+    if not args.C > 0:
+        return stop(f"--C: expected a positive number, got {args.C:g}")
+    if args.cache is not None and args.cache.exists() and not args.cache.is_dir():
+        return stop(f"--cache: {args.cache} is not a folder")
     folders, sequences = args.dataset + args.unseen, args.sequences.split(",")
     try:
         for folder in folders:
             load_dataset(folder, sequences)
-    except DatasetError as exc:
+        for name in names:
+            rows, ious = [], []
+            for copy, folder in enumerate(folders):
+                folder_rows, folder_ious = folder_frames(name, folder, sequences, seeds, args.cache)
+                rows += [{**r, "copy": copy} for r in folder_rows]
+                ious.append(folder_ious)
+            table = compare(fit.TRACKERS[name][0], rows, np.concatenate(ious), len(folders), len(args.dataset), args.C)
+            print(markdown(name, table, folders, len(args.dataset)) + "\n", flush=True)
+    except VidtrackError as exc:
         return stop(str(exc))
-    for name in names:
-        rows, ious = [], []
-        for copy, folder in enumerate(folders):
-            folder_rows, folder_ious = folder_frames(name, folder, sequences, seeds, args.cache)
-            rows += [{**r, "copy": copy} for r in folder_rows]
-            ious.append(folder_ious)
-        table = compare(fit.TRACKERS[name][0], rows, np.concatenate(ious), len(args.dataset), args.C)
-        print(markdown(name, table, folders, len(args.dataset)) + "\n", flush=True)
     return 0
 
 

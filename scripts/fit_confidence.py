@@ -245,25 +245,29 @@ def low_runs(p: np.ndarray, starts: np.ndarray, t: float) -> np.ndarray:
 
 
 def held_out_presence(X: np.ndarray, rows: list[dict], ious: np.ndarray, C: float,
-                      above: float = 0.0, directions=None) -> np.ndarray:
+                      above: float = 0.0, directions=None, fitted: np.ndarray | None = None) -> np.ndarray:
     """``P(IoU > above)`` of each row from the fit on the other sequences' rows.
 
     The logistic fit (on their own standardisation), or with ``directions`` (one +1 or -1 per column of
-    ``X``) the monotone trees (:func:`trees_model`).
+    ``X``) the monotone trees (:func:`trees_model`).  ``fitted``: ``(N,)`` bool, the rows a fit may learn from
+    (default all); every row is scored.
     """
     from sklearn.linear_model import LogisticRegression
 
     y = ious > above
     sequences = np.array([r.get("sequence", "") for r in rows])
+    fitted = np.ones(len(rows), bool) if fitted is None else fitted
     p = np.zeros(len(rows))
     for name in np.unique(sequences):
         test = sequences == name
+        train = fitted & ~test
         if directions is not None:
-            p[test] = trees_model(directions, X[~test], y[~test]).predict_proba(X[test])[:, 1]
+            model = trees_model(directions, X[train], y[train])
+            p[test] = model.predict_proba(X[test])[:, list(model.classes_).index(True)]
             continue
-        mean, scale = X[~test].mean(axis=0), X[~test].std(axis=0)
+        mean, scale = X[train].mean(axis=0), X[train].std(axis=0)
         scale = np.where(scale > 1e-9, scale, 1.0)
-        model = LogisticRegression(C=C, max_iter=1000).fit((X[~test] - mean) / scale, y[~test])
+        model = LogisticRegression(C=C, max_iter=1000).fit((X[train] - mean) / scale, y[train])
         p[test] = model.predict_proba((X[test] - mean) / scale)[:, 1]
     return p
 
@@ -367,10 +371,14 @@ def held_out_auc(cues, rows: list[dict], ious: np.ndarray, C: float = 1.0, X: np
     return conf_metrics.roc_auc(z, y)
 
 
-def held_out_confidence(cues, model: str, rows: list[dict], ious: np.ndarray, C: float) -> np.ndarray:
-    """``P(IoU > 0.5)`` of each row from ``model`` (``"logistic"`` or ``"trees"``) fitted on the other sequences."""
+def held_out_confidence(cues, model: str, rows: list[dict], ious: np.ndarray, C: float,
+                        fitted: np.ndarray | None = None) -> np.ndarray:
+    """``P(IoU > 0.5)`` of each row from ``model`` (``"logistic"`` or ``"trees"``) fitted on the other sequences.
+
+    ``fitted``: as in :func:`held_out_presence`.
+    """
     directions = cue_directions(cues) if model == "trees" else None
-    return held_out_presence(cue_matrix(cues, rows), rows, ious, C, above=0.5, directions=directions)
+    return held_out_presence(cue_matrix(cues, rows), rows, ious, C, above=0.5, directions=directions, fitted=fitted)
 
 
 def held_out_trees_auc(cues, rows: list[dict], ious: np.ndarray) -> float:
