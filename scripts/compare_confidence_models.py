@@ -111,9 +111,12 @@ def cache_path(cache: Path, name: str, dataset: str, sequences: list[str], seeds
     return cache / f"{name}-{Path(dataset).resolve().name}-{key[:10]}.json"
 
 
-def folder_frames(name: str, dataset: str, sequences: list[str], seeds: list[int],
+def folder_frames(name: str, dataset: str, loaded: list, sequences: list[str], seeds: list[int],
                   cache: Path | None) -> tuple[list[dict], np.ndarray]:
     """The tracker's rows and IoUs on one folder's ``sequences`` (from ``cache`` when it holds them).
+
+    ``loaded``: the folder's ``sequences`` as :func:`~vidtrack.eval.datasets.load_dataset` gives them, tracked
+    when the cache does not hold them.
 
     Raises
     ------
@@ -128,7 +131,7 @@ def folder_frames(name: str, dataset: str, sequences: list[str], seeds: list[int
         if missing:
             raise UsageError(f"{path} has no frame with the cue {missing[0]!r}; delete it to collect again")
         return rows, ious
-    rows, ious = fit.collect(name, [load_dataset(dataset, sequences)], seeds)
+    rows, ious = fit.collect(name, [loaded], seeds)
     if path is not None:
         path.parent.mkdir(parents=True, exist_ok=True)
         path.write_text(json.dumps({"rows": rows, "ious": ious.tolist()}), encoding="utf-8")
@@ -180,12 +183,11 @@ def main(argv=None) -> int:
         return stop(f"--cache: {args.cache} is not a folder")
     folders, sequences = args.dataset + args.unseen, args.sequences.split(",")
     try:
-        for folder in folders:
-            load_dataset(folder, sequences)
+        loaded = [load_dataset(folder, sequences) for folder in folders]   # every folder checked before tracking
         for name in names:
             rows, ious = [], []
             for copy, folder in enumerate(folders):
-                folder_rows, folder_ious = folder_frames(name, folder, sequences, seeds, args.cache)
+                folder_rows, folder_ious = folder_frames(name, folder, loaded[copy], sequences, seeds, args.cache)
                 rows += [{**r, "copy": copy} for r in folder_rows]
                 ious.append(folder_ious)
             table = compare(fit.TRACKERS[name][0], rows, np.concatenate(ious), len(folders), len(args.dataset), args.C)
