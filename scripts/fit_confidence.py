@@ -111,9 +111,10 @@ OUT = Path(__file__).resolve().parents[1] / "vidtrack" / "filters" / "calibratio
 #: confidence 0.811, all of :data:`~vidtrack.filters.score_trackers.CUES` 0.879); pf: the running colour
 #: likelihood, the verification gap, the particles' spread and the border gap (0.967, the set forward
 #: selection takes; without the border gap 0.951; the uncalibrated confidence 0.720, all 0.930); bayes: the
-#: running verification and colour likelihood, the spread and the border gap (0.963, chosen with the map one
-#: box size wide; forward selection now takes the verification gap instead of the running verification,
-#: 0.965; without the border gap 0.947; the uncalibrated confidence 0.803, all 0.943); cbt: the running colour likelihood, the running
+#: running verification and colour likelihood, the spread and the border gap (0.906; forward selection takes
+#: this frame's verification, the border gap and the running colour likelihood, 0.920, whose file gives lower
+#: boxes on tune and six copies of it, seed 0, and reads a box whose template no longer matches as present;
+#: the uncalibrated confidence 0.747, all 0.831); cbt: the running colour likelihood, the running
 #: verification and the mode mass (0.923; with the border gap 0.925, under the selection's step; the
 #: uncalibrated confidence 0.654, all of :data:`~vidtrack.filters.cbt.CUES` 0.898).
 MIL_CUES = tuple(c for c in mil_filter.CUES

@@ -1,7 +1,7 @@
 """The correlation-filter detector: known shifts, scale change, quality on clutter, re-detection."""
 
 import copy
-from dataclasses import fields
+from dataclasses import fields, replace
 
 import cv2
 import numpy as np
@@ -392,7 +392,13 @@ def test_make_detector_configures_the_score_map_detector():
 @pytest.mark.parametrize("name", ["nh", "pf", "bayes", "cbt"])
 def test_the_score_map_trackers_take_the_detector_settings_as_the_cf_group(name):
     """``--set cf.FIELD=VALUE`` (``cbt``: ``detections.cf.FIELD``) reaches the correlation-filter detector of every
-    tracker built on it; an unknown field is refused with the group's valid names."""
+    tracker built on it, on top of its preset (``bayes``'s detector learns from every past sample, the others'
+    from their average); an unknown field is refused with the group's valid names."""
+    from vidtrack.recipes.normalhedge import BAYES, EVERY_SAMPLE_CF
+
+    preset = BAYES.cf if name == "bayes" else CorrelationDetectorConfig()
+    assert (preset == EVERY_SAMPLE_CF) == (name == "bayes")
+    assert preset.second_moment == (name == "bayes")
     rng = np.random.default_rng(6)
     box = Box.from_center(100, 100, 30, 36)
     img, _ = scene(rng, box.center, box.size)
@@ -402,10 +408,10 @@ def test_the_score_map_trackers_take_the_detector_settings_as_the_cf_group(name)
     for built in (default, tracker):
         built.initialize(Frame(0, img), box)
     detector = tracker.measurer.inner.detector_ if name == "cbt" else tracker.measurer.inner
-    assert detector.config == CorrelationDetectorConfig(learn_above=0.8, scale_filter=False)
+    assert detector.config == replace(preset, learn_above=0.8, scale_filter=False)
     assert detector.filter_.scale_ is None
     detector = default.measurer.inner.detector_ if name == "cbt" else default.measurer.inner
-    assert detector.config == CorrelationDetectorConfig() and detector.filter_.scale_ is not None
+    assert detector.config == preset and detector.filter_.scale_ is not None
     with pytest.raises(UsageError, match=f"{group}.learn_above"):
         build_tracker(name, settings={f"{group}.learn_abov": "0.8"})
 

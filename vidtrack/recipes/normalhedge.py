@@ -109,11 +109,13 @@ def build_bayes(config: GridBayesConfig, seed=None) -> Tracker:
 
 
 # On the correlation-filter map: nh keeps more actions and a shorter regret memory,
-# bayes walks wider; all three restart at a confident re-detection while lost (see
-# vidtrack.filters.score_trackers)
+# bayes walks wider on a detector solved over every past sample; all three restart at a
+# confident re-detection while lost (see vidtrack.filters.score_trackers)
 NH = NormalHedgeConfig(n_actions=300, alpha=0.6, reseed_above=0.7)
 PF = ParticleConfig(reseed_above=0.7)
-BAYES = GridBayesConfig(sigma_d=0.2, reseed_above=0.7)
+#: The detector solved over every past sample, as mil's filter is (ECO's objective; see CorrelationConfig)
+EVERY_SAMPLE_CF = CorrelationDetectorConfig(second_moment=True, support=0.85, solve_interval=3, admm_iterations=4)
+BAYES = GridBayesConfig(sigma_d=0.2, reseed_above=0.7, cf=EVERY_SAMPLE_CF)
 
 RECIPES = {
     "nh": Recipe("SMC NormalHedge on a sliding-detector score map (Chaudhuri, Freund & Hsu 2010)", build_nh, NH),
