@@ -42,7 +42,6 @@ from __future__ import annotations
 
 import argparse
 import hashlib
-import json
 import sys
 from pathlib import Path
 
@@ -124,17 +123,12 @@ def folder_frames(name: str, dataset: str, loaded: list, sequences: list[str], s
         When the cached frames lack one of the tracker's cues (frames of an older tracker).
     """
     path = None if cache is None else cache_path(cache, name, dataset, sequences, seeds)
-    if path is not None and path.is_file():
-        saved = json.loads(path.read_text(encoding="utf-8"))
-        rows, ious = saved["rows"], np.array(saved["ious"])
-        missing = [c[0] for c in fit.TRACKERS[name][0] if not any(c[0] in r for r in rows)]
-        if missing:
-            raise UsageError(f"{path} has no frame with the cue {missing[0]!r}; delete it to collect again")
-        return rows, ious
+    frames = None if path is None else fit.read_frames(path, {c[0] for c in fit.TRACKERS[name][0]})
+    if frames is not None:
+        return frames
     rows, ious = fit.collect(name, [loaded], seeds)
     if path is not None:
-        path.parent.mkdir(parents=True, exist_ok=True)
-        path.write_text(json.dumps({"rows": rows, "ious": ious.tolist()}), encoding="utf-8")
+        fit.write_frames(path, rows, ious)
     return rows, ious
 
 

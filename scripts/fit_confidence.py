@@ -85,6 +85,7 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
+from vidtrack.errors import UsageError  # noqa: E402
 from vidtrack.eval import confidence as conf_metrics  # noqa: E402
 from vidtrack.eval import metrics  # noqa: E402
 from vidtrack.eval.datasets import annotated_rows, load_dataset  # noqa: E402
@@ -622,25 +623,49 @@ def copy_names(args) -> list[str]:
     return [Path(d).resolve().name for d in args.dataset[1:]]
 
 
+def read_frames(path: Path, wanted) -> tuple[list[dict], np.ndarray] | None:
+    """The rows and IoUs a frame cache keeps at ``path`` (:func:`write_frames`), None when there is none.
+
+    Raises
+    ------
+    UsageError
+        When no frame holds one of the ``wanted`` cues: frames of an older tracker, which a fit would read
+        as the cue's fill value.
+    """
+    if not path.is_file():
+        return None
+    saved = json.loads(path.read_text(encoding="utf-8"))
+    rows, ious = saved["rows"], np.array(saved["ious"])
+    missing = sorted(c for c in wanted if not any(c in r for r in rows))
+    if missing:
+        raise UsageError(f"{path} has no frame with {', '.join(missing)}; delete it to collect again")
+    return rows, ious
+
+
+def write_frames(path: Path, rows: list[dict], ious: np.ndarray) -> None:
+    """Keep a tracker's rows and IoUs at ``path`` for :func:`read_frames`."""
+    path.parent.mkdir(parents=True, exist_ok=True)
+    path.write_text(json.dumps({"rows": rows, "ious": ious.tolist()}), encoding="utf-8")
+
+
 def fit_pass(name, folders, seeds, args, *, calibrated: bool):
     """One pass: collect the frames (or read them from the cache), fit, print the tune figures."""
     cache = None
     if args.cache is not None:
         copies = "".join(f"-{copy}" for copy in copy_names(args))
         cache = args.cache / f"{name}-{'-'.join(map(str, seeds))}{copies}{'-calibrated' if calibrated else ''}.json"
-    if cache is not None and cache.is_file():
-        saved = json.loads(cache.read_text(encoding="utf-8"))
-        rows, ious = saved["rows"], np.array(saved["ious"])
-        wanted = {c[0] for c in TRACKERS[name][0] + PRESENCE_CUES.get(name, ())}
-        wanted.add("unmeasured")   # the lost rule also reads whether anything was measured
-        missing = sorted(c for c in wanted if not any(c in r for r in rows))
-        if missing:   # frames of an older tracker: they would be fitted on the fill values
-            raise SystemExit(f"fit_confidence: {cache} has no frame with {', '.join(missing)}; delete it to collect again")
+    wanted = {c[0] for c in TRACKERS[name][0] + PRESENCE_CUES.get(name, ())}
+    wanted.add("unmeasured")   # the lost rule also reads whether anything was measured
+    try:
+        frames = None if cache is None else read_frames(cache, wanted)
+    except UsageError as exc:
+        raise SystemExit(f"fit_confidence: {exc}") from None
+    if frames is not None:
+        rows, ious = frames
     else:
         rows, ious = collect(name, folders, seeds, calibrated)
         if cache is not None:
-            cache.parent.mkdir(parents=True, exist_ok=True)
-            cache.write_text(json.dumps({"rows": rows, "ious": ious.tolist()}), encoding="utf-8")
+            write_frames(cache, rows, ious)
     held = None   # each sequence's presence (or confidence) from the fit on the others: chooses the lost rule
     if TRACKERS[name][2] == "balance":
         held = held_out_presence(cue_matrix(PRESENCE_CUES[name], rows), rows, ious, args.C)

@@ -91,9 +91,8 @@ def test_a_run_from_cached_frames_prints_a_table_per_tracker(compare, capsys, tm
             write_sequence(folder / name, frames=4)
         mine = [k for k, r in enumerate(rows) if r["copy"] == copy]
         frames = [{**rows[k], "quality": rows[k]["colour_mean"], "verify_gap": 0.0} for k in mine]
-        path = compare.cache_path(tmp_path / "cache", "nh", str(folder), list("ABCDE"), [0])
-        path.parent.mkdir(exist_ok=True)
-        path.write_text(compare.json.dumps({"rows": frames, "ious": ious[mine].tolist()}))
+        compare.fit.write_frames(compare.cache_path(tmp_path / "cache", "nh", str(folder), list("ABCDE"), [0]),
+                                 frames, ious[mine])
     args = [str(folders[0]), str(folders[1]), "--unseen", str(folders[2]), "--trackers", "nh",
             "--sequences", "A,B,C,D,E", "--cache", str(tmp_path / "cache")]
     assert compare.main(args) == 0
@@ -136,3 +135,16 @@ def test_a_cache_that_is_a_file_stops_before_tracking(compare, capsys, tmp_path)
     (tmp_path / "frames").write_text("")
     assert compare.main([str(SEQUENCES), "--cache", str(tmp_path / "frames")]) == 2
     assert "not a folder" in capsys.readouterr().err
+
+
+def test_a_cache_of_frames_without_the_trackers_cues_stops_with_one_line(compare, capsys, tmp_path):
+    """Frames of an older tracker (a cue missing from every frame) are refused, not fitted on fill values."""
+    from vidtrack.eval.synthetic import write_sequence
+
+    write_sequence(tmp_path / "tune" / "A", frames=4)
+    path = compare.cache_path(tmp_path / "cache", "nh", str(tmp_path / "tune"), ["A"], [0])
+    compare.fit.write_frames(path, [{"sequence": "A", "quality": 0.9}], np.array([0.8]))
+    args = [str(tmp_path / "tune"), "--trackers", "nh", "--sequences", "A", "--cache", str(tmp_path / "cache")]
+    assert compare.main(args) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "colour_mean" in err[0] and "delete it to collect again" in err[0]

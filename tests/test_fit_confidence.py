@@ -282,3 +282,16 @@ def test_with_copies_pooled_the_lost_rule_is_chosen_on_the_sequences_own_frames(
     everything = fit.choose_lost_rule(pooled_held, pooled_ious, fit.run_starts(pooled_rows),
                                       fit.unmeasured_rows(pooled_rows))
     assert everything[1] == 1   # on all frames the copy's one-frame losses would make one low frame a loss
+
+
+def test_the_frame_cache_keeps_rows_and_ious_and_refuses_frames_without_a_wanted_cue(fit, tmp_path):
+    from vidtrack.errors import UsageError
+
+    path = tmp_path / "frames" / "nh-0.json"
+    assert fit.read_frames(path, {"quality"}) is None
+    rows = [{"sequence": "A", "quality": 0.9}, {"sequence": "A", "quality": 0.2, "unmeasured": 1.0}]
+    fit.write_frames(path, rows, np.array([0.8, 0.0]))
+    read_rows, read_ious = fit.read_frames(path, {"quality", "unmeasured"})
+    assert read_rows == rows and np.array_equal(read_ious, [0.8, 0.0])
+    with pytest.raises(UsageError, match="no frame with border_gap, colour_mean; delete it"):
+        fit.read_frames(path, {"quality", "colour_mean", "border_gap"})
