@@ -392,13 +392,14 @@ def test_make_detector_configures_the_score_map_detector():
 @pytest.mark.parametrize("name", ["nh", "pf", "bayes", "cbt"])
 def test_the_score_map_trackers_take_the_detector_settings_as_the_cf_group(name):
     """``--set cf.FIELD=VALUE`` (``cbt``: ``detections.cf.FIELD``) reaches the correlation-filter detector of every
-    tracker built on it, on top of its preset (``bayes``'s detector learns from every past sample, the others'
-    from their average); an unknown field is refused with the group's valid names."""
-    from vidtrack.recipes.normalhedge import BAYES, EVERY_SAMPLE_CF
+    tracker built on it, on top of its preset (``pf``'s and ``bayes``'s detectors learn from every past sample,
+    ``nh``'s and ``cbt``'s from their average); an unknown field is refused with the group's valid names."""
+    from vidtrack.recipes.normalhedge import BAYES, EVERY_SAMPLE_CF, PF
 
-    preset = BAYES.cf if name == "bayes" else CorrelationDetectorConfig()
-    assert (preset == EVERY_SAMPLE_CF) == (name == "bayes")
-    assert preset.second_moment == (name == "bayes")
+    every_sample = name in ("pf", "bayes")
+    preset = {"pf": PF.cf, "bayes": BAYES.cf}.get(name, CorrelationDetectorConfig())
+    assert (preset == EVERY_SAMPLE_CF) == every_sample
+    assert preset.second_moment == every_sample
     rng = np.random.default_rng(6)
     box = Box.from_center(100, 100, 30, 36)
     img, _ = scene(rng, box.center, box.size)

@@ -108,13 +108,13 @@ def build_bayes(config: GridBayesConfig, seed=None) -> Tracker:
                                                         confidence=_calibrated(config)))
 
 
-# On the correlation-filter map: nh keeps more actions and a shorter regret memory,
-# bayes walks wider on a detector solved over every past sample; all three restart at a
-# confident re-detection while lost (see vidtrack.filters.score_trackers)
-NH = NormalHedgeConfig(n_actions=300, alpha=0.6, reseed_above=0.7)
-PF = ParticleConfig(reseed_above=0.7)
+# On the correlation-filter map: nh keeps more actions and a shorter regret memory, pf and
+# bayes read a detector solved over every past sample and bayes walks wider; all three
+# restart at a confident re-detection while lost (see vidtrack.filters.score_trackers)
 #: The detector solved over every past sample, as mil's filter is (ECO's objective; see CorrelationConfig)
 EVERY_SAMPLE_CF = CorrelationDetectorConfig(second_moment=True, support=0.85, solve_interval=3, admm_iterations=4)
+NH = NormalHedgeConfig(n_actions=300, alpha=0.6, reseed_above=0.7)
+PF = ParticleConfig(reseed_above=0.7, cf=EVERY_SAMPLE_CF)
 BAYES = GridBayesConfig(sigma_d=0.2, reseed_above=0.7, cf=EVERY_SAMPLE_CF)
 
 RECIPES = {
