@@ -23,8 +23,9 @@ target's cross the target, and in which the target keeps to the frame's side::
     python scripts/edge_sequences.py ../shared/data/sequences EDGE --sequences <tune>
     python scripts/fit_confidence.py ../shared/data/sequences OCC1 OCC3 EDGE --trackers nh,pf --seeds 0 --passes 2
 
-The packaged ``pf.json`` was fitted so on ``pf`` with the detector learning
-from the average sample (``cf.second_moment=false``); refitted on its
+The packaged ``pf.json`` was fitted so on ``pf`` with the detector's own
+defaults (learning from the average sample, ``cf.second_moment=false``,
+``cf.support=1``, ``cf.solve_interval=1``, ``cf.admm_iterations=2``); refitted on its
 every-sample preset, the trees read a vanished target as present (about 0.5)
 and ``tests/test_confidence_cues.py`` fails, so check that test after a refit.
 
